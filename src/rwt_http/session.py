@@ -57,6 +57,7 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.rules import ClientRules
 
     from .document import Document, DocumentSource
+    from .standing import StandingOffers
 
 __all__ = ["HttpApiOptions", "HttpSession"]
 
@@ -96,6 +97,8 @@ class HttpSession(SessionBase):
             None: made here at once, whole.
         if_none_match: the request's ``If-None-Match`` header: the document is
             answered 304 when it names the current one.
+        offers: the API's standing registrations, which keep a publish's ``qos``
+            past its request (``standing``, D63); None: it lasts the request.
     """
 
     protocol = "http"
@@ -117,6 +120,7 @@ class HttpSession(SessionBase):
         memory: MemoryBudget | None = None,
         documents: DocumentSource | None = None,
         if_none_match: str | None = None,
+        offers: StandingOffers | None = None,
     ) -> None:
         super().__init__(
             graph,
@@ -137,6 +141,7 @@ class HttpSession(SessionBase):
         self._head_only = head_only
         self._documents = documents
         self._if_none_match = if_none_match
+        self._offers = offers
         self._answered = False  # a response (or a stream's head) is queued
         self._streaming = False
         self._holds = False  # a subscription waits in the graph (a call: the call book)
@@ -291,10 +296,29 @@ class HttpSession(SessionBase):
         if any(note.dropped for note in notes):  # the safety envelope's rate (docs/safety.md)
             self._answer(429, {"error": "; ".join(note.text for note in notes)})
             return
+        warnings = [note.text for note in notes]  # a request is one command (D67)
+        if route.qos is not None:
+            warnings += self._keep_offer(route.name, type_name, route.qos)
         answer: dict[str, object] = {"topic": route.name, "type": type_name}
-        if notes:  # a request is one command: each is told what the envelope did (D67)
-            answer["warnings"] = [note.text for note in notes]
+        if warnings:
+            answer["warnings"] = warnings
         self._answer(200, answer)
+
+    def _keep_offer(self, topic: str, type_name: str, qos: QosProfile) -> list[str]:
+        """Keep the publish's ``qos`` past the request (``standing``, D63); what to warn of.
+
+        A topic that keeps another registration's QoS is said so, as a rosbridge
+        client's ``advertise`` is (D62).
+        """
+        if self._offers is not None:
+            self._offers.hold(topic, type_name, qos)
+        offered = self.graph.offered_qos(topic)
+        if offered is None or offered == qos.for_publisher():
+            return []
+        return [
+            f"{topic} keeps the QoS of its first registration ({offered.describe()});"
+            f" this one's ({qos.describe()}) is not used"
+        ]
 
     def _events(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.TOPICS, route.name, "subscribe", TopicUse.SUBSCRIBE)
@@ -323,8 +347,10 @@ class HttpSession(SessionBase):
             return
         gap = self.route.throttle_rate_ms / 1000.0
         name = self.route.name
+        timeless = self.config.qos_lifespan_s == math.inf  # no server lifespan (D63)
         run: list[OutFrame] = []
         run_now = run_lifespan = 0.0
+        run_end = math.inf  # the run's end (``message_end``, D63)
         for each in events:
             if gap:
                 if each.now - self._last_sent < gap:
@@ -334,13 +360,16 @@ class HttpSession(SessionBase):
             if frame is None:  # (``encoded``, inline above: a call less per stream)
                 frame = each.encoded(_SSE_KEY, partial(_sse, each))
             lifespan = each.lifespan
-            if run and (lifespan != run_lifespan or (lifespan > 0 and each.now != run_now)):
-                self.queue_run(run, name, run_now, run_lifespan)
+            end = each.expires if timeless else self.message_end(each)
+            if run and (
+                lifespan != run_lifespan or end != run_end or (lifespan > 0 and each.now != run_now)
+            ):
+                self.queue_run(run, name, run_now, run_lifespan, run_end)
                 run = []
             run.append(frame)
             run_now = each.now if each.now > run_now else run_now
-            run_lifespan = lifespan
-        self.queue_run(run, name, run_now, run_lifespan)
+            run_lifespan, run_end = lifespan, end
+        self.queue_run(run, name, run_now, run_lifespan, run_end)
 
     def _send_ruled(self, events: Sequence[MessageEvent], rule: QueueRule) -> None:
         """Queue ``events`` of a stream with QoS, each with its lifespan's end (D63)."""
@@ -351,7 +380,7 @@ class HttpSession(SessionBase):
                     continue  # rosbridge's throttle_rate: at most one message a gap
                 self._last_sent = each.now
             frame = each.encoded(_SSE_KEY, partial(_sse, each))
-            expires = min(each.expires, each.now + self._stream_lifespan_s)
+            expires = self.message_end(each, self._stream_lifespan_s)
             self.send_frames((frame,), self.route.name, 0.0, rule, expires)
 
     def stream_qos(self, offered: QosProfile | None) -> None:

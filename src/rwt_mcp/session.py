@@ -144,9 +144,12 @@ class _Watcher:
     def _later(self, now: float) -> None:
         self.timer = None
         event, self.pending = self.pending, None
-        if event is not None and not self.closed:
-            self.last = now
-            self._deliver(event)
+        if event is None or self.closed:
+            return
+        if self.session.message_end(event) <= now:
+            return  # past its lifespan while it waited (D63): never delivered
+        self.last = now
+        self._deliver(event)
 
     def _deliver(self, event: MessageEvent) -> None:
         try:  # made once per message for every MCP subscriber (read, never changed)

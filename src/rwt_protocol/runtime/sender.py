@@ -29,6 +29,7 @@ from .memory import PRESSURE_FLOOR_BYTES
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
+    from ..ports import MessageEvent
     from .backpressure import SlowConsumerWatch
     from .lifecycle import State
     from .memory import MemoryAccount
@@ -81,6 +82,23 @@ class Sender:
             """The protocol's look at the frames taken (``SessionBase.taken``)."""
             raise NotImplementedError
 
+    def message_end(self, event: MessageEvent, lifespan_s: float = math.inf) -> float:
+        """The monotonic time after which ``event`` is never sent to this peer (D63).
+
+        One rule for every front end that subscribes: the earlier of the end its
+        topic's offer gave it (``MessageEvent.expires``) and its publication plus
+        the subscription's lifespan, seconds: ``lifespan_s`` where the
+        subscription asked one, else the server's (``ClientRules.qos_lifespan_s``,
+        ``--qos-lifespan``). What the protocol queues with this end
+        (``send_frames``, ``queue_run``) the outbox never gives the transport after
+        it (``outbox``). ``math.inf``: none.
+        """
+        if lifespan_s == math.inf:
+            lifespan_s = self._config.qos_lifespan_s
+        if lifespan_s == math.inf:
+            return event.expires
+        return min(event.expires, event.now + lifespan_s)
+
     def send_frames(
         self,
         frames: Sequence[OutFrame],
@@ -104,8 +122,8 @@ class Sender:
                 (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
             rule: the subscription's QoS for a topic message (``outbox.QueueRule``,
                 D63, D64): its depth and reliability in the queue.
-            expires: with ``rule``, the monotonic time after which the message is
-                never sent (its lifespan's end, D63).
+            expires: the monotonic time after which a topic message is never sent
+                (its lifespan's end, ``message_end``; D63), with or without ``rule``.
         """
         if not self._state.sends:
             return
@@ -127,7 +145,12 @@ class Sender:
         self.sweep_memory()
 
     def queue_run(
-        self, frames: Sequence[OutFrame], topic: str | None, now: float, lifespan: float = 0.0
+        self,
+        frames: Sequence[OutFrame],
+        topic: str | None,
+        now: float,
+        lifespan: float = 0.0,
+        expires: float = math.inf,
     ) -> None:
         """Queue a run of topic messages, one whole droppable frame each, and wake once.
 
@@ -147,6 +170,8 @@ class Sender:
                 to it, and a ``lifespan`` counts from it.
             lifespan: seconds of ``topic``'s messages the outbox holds at most
                 (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
+            expires: the monotonic time after which none of them is sent (their
+                lifespan's end, ``message_end``; D63): a run shares one.
         """
         if not self._sends or not frames:
             return
@@ -157,10 +182,10 @@ class Sender:
         outbox = self._outbox
         wake = self.wakes_each_run or len(outbox) == 0  # (no ``len`` call for those that wake)
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        if lifespan > 0:
+        if lifespan > 0 or expires != math.inf:
             key = topic or ""
             for frame in frames:
-                outbox.push_timed(frame, now, lifespan, key)
+                outbox.push_timed(frame, now, lifespan, key, expires)
                 if outbox.dropped != dropped:  # the slow-consumer rule, message by message
                     self._watch.after_push(dropped, oversized, now, (frame,), topic)
                     dropped, oversized = outbox.dropped, outbox.dropped_oversized

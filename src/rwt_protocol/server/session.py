@@ -87,7 +87,7 @@ class SessionConfig(ClientRules):
     The rules every protocol shares (``send_buffer_limit``, ``send_timeout_s``,
     ``hold_budget_s``, ``access``, ``authenticator``, ``call_timeout_s``,
     ``max_subscriptions``, ``max_advertisements``, ``max_pending_calls``,
-    ``idle_timeout_s``) are ``ClientRules``'s (``rwt_protocol.runtime.rules``),
+    ``idle_timeout_s``, ``qos_lifespan_s``) are ``ClientRules``'s (``rwt_protocol.runtime.rules``),
     taken by the same keywords; the server makes one ``SessionConfig`` and every
     front end reads the part it knows.
 
@@ -119,9 +119,6 @@ class SessionConfig(ClientRules):
         png_inflate_rate: bytes a second of ``png`` images one connection may have
             inflated, after a burst of ``max_message_size`` (``--png-inflate-rate``;
             ``inflate.TokenBucket``): past it, its later ``png`` ops wait.
-        qos_lifespan_s: the lifespan a subscription gets when its ``qos`` gives none
-            (or it has none), seconds: no message older than this is sent to it
-            (``--qos-lifespan``, D63; inf: none, as rosbridge_suite).
         All caps are listed with what a client sees in docs/limits.md.
     """
 
@@ -135,7 +132,6 @@ class SessionConfig(ClientRules):
     max_ids_per_topic: int = 100
     max_pending_goals: int = 1000
     png_inflate_rate: int = 8 * MiB
-    qos_lifespan_s: float = math.inf
 
 
 class Session(SessionBase):
@@ -212,6 +208,7 @@ class Session(SessionBase):
         self._auth_nonce: str | None = None
         self._input_lossy = False  # the frame being handled came on the lossy channel
         self._oversize_warned: set[str] = set()  # topics told of a message too large for it
+        self._reads_qos = config.compat.reads_qos  # else a ``qos`` is an unknown field (D62)
         if self._config.auth_challenge and self._state is State.AUTHENTICATING:
             self._auth_nonce = auth_nonce
             if auth_nonce is None:
@@ -255,6 +252,9 @@ class Session(SessionBase):
             else:
                 obj = decode_json(frame)
             op_id = peek_id(obj)
+            if not self._reads_qos and isinstance(obj, dict) and "qos" in obj:
+                # rosbridge_suite 2.1.0 knows no qos: whatever it holds, it is not read (D62)
+                obj = {key: value for key, value in obj.items() if key != "qos"}
             op = parse_object(obj)
             op_name = op.op
             if self._state is State.OPEN:
@@ -563,7 +563,7 @@ class Session(SessionBase):
             params.compression,
             None if lossy else params.fragment_size,
         )
-        expires = min(event.expires, event.now + subscription.lifespan_s)
+        expires = self.message_end(event, subscription.lifespan_s)
         if isinstance(frames, EncodeFailure):
             self._encode_failed(subscription, frames, params.compression)
         elif lossy:
@@ -722,9 +722,7 @@ class Session(SessionBase):
             self._encode_failed(subscription, result, Compression.PNG)
             return
         event, rule = job.event, subscription.rule
-        expires = (
-            math.inf if rule is None else min(event.expires, event.now + subscription.lifespan_s)
-        )
+        expires = self.message_end(event, subscription.lifespan_s)
         if subscription.lossy:
             self._queue_lossy(subscription, result, expires)  # type: ignore[arg-type]
         else:

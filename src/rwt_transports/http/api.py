@@ -33,6 +33,7 @@ from rwt_http import (
     Route,
     RouteError,
     RouteKind,
+    StandingOffers,
     parse_route,
 )
 from rwt_http.wire import error_response, no_content
@@ -179,6 +180,8 @@ class HttpApiEndpoint:
         self.max_body = options.max_body_bytes or host.settings.max_message_size
         self.documents = DocumentBuilds(host.graph.port, installed_version())
         """The OpenAPI documents, made once per change of the graph and kept (D59)."""
+        self.offers = StandingOffers(host.graph.port)
+        """The registrations that keep a publish's ``qos`` past its request (D63)."""
         self._fetching: Counter[str] = Counter()  # hosts' requests for the document in flight
 
     def bind(self, tg: TaskGroup | None) -> None:
@@ -274,6 +277,7 @@ class HttpApiEndpoint:
                 memory=request.memory,
                 documents=self.documents,
                 if_none_match=opened.headers.get("if-none-match"),
+                offers=self.offers,
             )
 
         frontend = FrontEnd("http", (), make)
