@@ -72,7 +72,7 @@ from rwt_protocol.distribution import install_hint
 
 if TYPE_CHECKING:
     import asyncio
-    from collections.abc import Callable, Sequence
+    from collections.abc import Callable, Coroutine, Sequence
 
     from .ice import IceServer
 
@@ -83,6 +83,7 @@ __all__ = [
     "HOP_OVERHEAD_BYTES",
     "STACKS",
     "STATE_POLL_S",
+    "ChannelGate",
     "Inflow",
     "NativeDataChannel",
     "NativePeerConnection",
@@ -413,7 +414,84 @@ class NativeDataChannel:
         self._close_peer()
 
 
-class NativePeerConnection:
+class ChannelGate:
+    """What both libraries' peer connections do alike (``NativePeerConnection``, reactor's).
+
+    The channels the peer opens are judged on the library's thread (``admit``): a
+    refused one, or a second of a label, is closed there before it has callbacks;
+    a taken one goes to the loop's ``datachannel`` handler. ``connectionState`` is
+    in aiortc's names; ``state_changed`` tells the ``connectionstatechange`` handlers.
+    A subclass sets ``_loop``, ``_hop`` and ``_refusal`` and has ``close``.
+    """
+
+    _loop: asyncio.AbstractEventLoop
+    _hop: _Hop
+    _refusal: Callable[[str, bool, int | None, float | None], str | None]
+
+    def __init__(self) -> None:
+        self._labels: set[str] = set()  # the labels taken (the library's thread)
+        self._closing: set[asyncio.Task[None]] = set()
+        self._handlers: dict[str, list[Callable[[], object]]] = {}
+        self._channel_handler: Callable[[NativeDataChannel], object] | None = None
+        self.connectionState = "new"
+
+    async def close(self) -> None:
+        """Close the peer connection (the library's own way)."""
+        raise NotImplementedError
+
+    def on(self, event: str, handler: Callable[..., object]) -> None:
+        """``datachannel`` (one ``NativeDataChannel``) or ``connectionstatechange`` (none)."""
+        if event == "datachannel":
+            self._channel_handler = handler
+        else:
+            self._handlers.setdefault(event, []).append(handler)
+
+    def admit(self, hop: _Hop, channel: Any, wrapped: NativeDataChannel) -> None:
+        """Judge ``wrapped`` (the library's ``channel``) on the library's thread; hand it on."""
+        label = wrapped.label
+        reason = self._refusal(
+            label, wrapped.ordered, wrapped.maxRetransmits, wrapped.maxPacketLifeTime
+        )
+        if reason is None and label in self._labels:
+            reason = "second"
+        if reason is not None:  # closed here, before it has callbacks (close's docstring)
+            with contextlib.suppress(RuntimeError):
+                channel.close()
+            hop.post("_refused", label, reason)
+            return
+        self._labels.add(label)
+        hop.post("_got_channel", wrapped)  # first: the loop takes it before its messages
+        wrapped.listen()
+
+    @staticmethod
+    def _refused(label: str, reason: str) -> None:
+        logger.info("event=channel_refused label=%r reason=%s", label, reason)
+
+    def _got_channel(self, channel: NativeDataChannel) -> None:
+        if self._channel_handler is not None:
+            self._channel_handler(channel)
+        else:
+            channel.close()
+
+    def _close_soon(self) -> None:
+        """Close the peer connection (a channel of it closed, from the loop)."""
+        if self._hop.target is not None:
+            self.run_soon(self.close())
+
+    def run_soon(self, coroutine: Coroutine[Any, Any, None]) -> None:
+        """Run ``coroutine`` on the loop, held until it ends."""
+        task = self._loop.create_task(coroutine)
+        self._closing.add(task)
+        task.add_done_callback(self._closing.discard)
+
+    def state_changed(self, state: str) -> None:
+        """``connectionState`` is now ``state``: tell the ``connectionstatechange`` handlers."""
+        self.connectionState = state
+        for handler in list(self._handlers.get("connectionstatechange", ())):
+            handler()
+
+
+class NativePeerConnection(ChannelGate):
     """A libdatachannel peer connection answering one offer of data channels.
 
     Its ``connectionState`` uses aiortc's names (``connected``, ``failed``,
@@ -453,14 +531,13 @@ class NativePeerConnection:
         *,
         tracks: bool = False,
     ) -> None:
+        super().__init__()
         ldc = _import()
         self._ldc = ldc
         self._loop = _running_loop()
         self._max = max_message_size
         self._inflow = inflow
         self._refusal = refusal
-        self._labels: set[str] = set()  # the labels taken (libdatachannel's thread)
-        self._closing: set[asyncio.Task[None]] = set()
         config = ldc.Configuration()
         config.ice_servers = [native_ice_server(ldc, server) for server in ice_servers]
         # one byte over the answer: a message libdatachannel cuts is over it (module text)
@@ -473,57 +550,17 @@ class NativePeerConnection:
         self._offered: list[Any] = []  # set_remote_description calls back on this thread
         if tracks:
             self._pc.on_track(self._offered.append)
-        self._handlers: dict[str, list[Callable[[], object]]] = {}
-        self._channel_handler: Callable[[NativeDataChannel], object] | None = None
-        self.connectionState = "new"
         self.localSdp: str | None = None
         hop = self._hop = _Hop(self._loop, self)
         self._pc.on_data_channel(lambda channel: _new_channel(hop, channel))
         self._loop.call_later(STATE_POLL_S, self._poll_state)
-
-    def on(self, event: str, handler: Callable[..., object]) -> None:
-        """``datachannel`` (one ``NativeDataChannel``) or ``connectionstatechange`` (none)."""
-        if event == "datachannel":
-            self._channel_handler = handler
-        else:
-            self._handlers.setdefault(event, []).append(handler)
 
     def _channel(self, hop: _Hop, channel: Any) -> None:
         """A channel the peer opened (a libdatachannel thread): wrap it, hand it to the loop."""
         if hop.target is None:
             return
         wrapped = NativeDataChannel(channel, self._loop, self._inflow, self._max, self._close_soon)
-        label = wrapped.label
-        reason = self._refusal(
-            label, wrapped.ordered, wrapped.maxRetransmits, wrapped.maxPacketLifeTime
-        )
-        if reason is None and label in self._labels:
-            reason = "second"
-        if reason is not None:  # closed here, before it has callbacks (close's docstring)
-            with contextlib.suppress(RuntimeError):
-                channel.close()
-            hop.post("_refused", label, reason)
-            return
-        self._labels.add(label)
-        hop.post("_got_channel", wrapped)  # first: the loop takes it before its messages
-        wrapped.listen()
-
-    @staticmethod
-    def _refused(label: str, reason: str) -> None:
-        logger.info("event=channel_refused label=%r reason=%s", label, reason)
-
-    def _close_soon(self) -> None:
-        """Close the peer connection (a channel of it closed, from the loop)."""
-        if self._hop.target is not None:
-            task = self._loop.create_task(self.close())
-            self._closing.add(task)
-            task.add_done_callback(self._closing.discard)
-
-    def _got_channel(self, channel: NativeDataChannel) -> None:
-        if self._channel_handler is not None:
-            self._channel_handler(channel)
-        else:
-            channel.close()
+        self.admit(hop, channel, wrapped)
 
     def _poll_state(self) -> None:
         """Read the state (an atomic read); a change calls ``connectionstatechange``."""
@@ -531,9 +568,7 @@ class NativePeerConnection:
             return
         state = _STATES.get(self._pc.state().name, "failed")
         if state != self.connectionState:
-            self.connectionState = state
-            for handler in list(self._handlers.get("connectionstatechange", ())):
-                handler()
+            self.state_changed(state)
         if state != "closed":
             self._loop.call_later(STATE_POLL_S, self._poll_state)
 

@@ -41,10 +41,9 @@ import anyio
 
 from rwt_protocol.distribution import install_hint
 
-from .native import NativeDataChannel, _Hop, _running_loop
+from .native import _STATES, ChannelGate, NativeDataChannel, _Hop, _running_loop
 
 if TYPE_CHECKING:
-    import asyncio
     from collections.abc import Callable, Sequence
 
     from .ice import IceServer
@@ -69,15 +68,6 @@ after a loss the window stays at 16 packets at least (upstream: 4), SACKs wait a
 
 GATHER_TIMEOUT_S = 5.0
 """Seconds an answer waits for its candidates (STUN and TURN servers' included)."""
-
-_STATES = {
-    "New": "new",
-    "Connecting": "connecting",
-    "Connected": "connected",
-    "Disconnected": "disconnected",
-    "Failed": "failed",
-    "Closed": "closed",
-}
 
 
 def _import() -> Any:
@@ -169,7 +159,7 @@ class _Channel:
         self._channel.close()
 
 
-class ReactorPeerConnection:
+class ReactorPeerConnection(ChannelGate):
     """A libwebrtc peer connection (reactor-webrtc) answering one offer of data channels.
 
     The face of ``webrtc.native.NativePeerConnection``: ``connectionState`` in aiortc's
@@ -198,18 +188,14 @@ class ReactorPeerConnection:
         inflow: Inflow,
         refusal: Callable[[str, bool, int | None, float | None], str | None],
     ) -> None:
+        super().__init__()
         rw = _import()
         self._loop = _running_loop()
         self._max = max_message_size
         self._inflow = inflow
         self._refusal = refusal
-        self._labels: set[str] = set()  # the labels taken (libwebrtc's thread)
-        self._handlers: dict[str, list[Callable[[], object]]] = {}
-        self._channel_handler: Callable[[NativeDataChannel], object] | None = None
         self._candidates: list[tuple[str | None, str]] = []
         self._gathered = anyio.Event()
-        self._closing: set[asyncio.Task[None]] = set()
-        self.connectionState = "new"
         hop = self._hop = _Hop(self._loop, self)
         observer = rw.PeerConnectionObserver()  # each callback holds the hop only
         observer.on_data_channel = lambda channel: _new_channel(hop, channel)
@@ -225,13 +211,6 @@ class ReactorPeerConnection:
         config = rw.RtcConfiguration(ice_servers=servers, frame_metadata=False)
         self._pc: Any = reactor_factory().create_peer_connection(config, observer)
 
-    def on(self, event: str, handler: Callable[..., object]) -> None:
-        """``datachannel`` (one ``NativeDataChannel``) or ``connectionstatechange`` (none)."""
-        if event == "datachannel":
-            self._channel_handler = handler
-        else:
-            self._handlers.setdefault(event, []).append(handler)
-
     def _channel(self, hop: _Hop, channel: Any) -> None:
         """A channel the peer opened (libwebrtc's thread): judge it, hand it to the loop."""
         if hop.target is None:
@@ -239,48 +218,14 @@ class ReactorPeerConnection:
         wrapped = NativeDataChannel(
             _Channel(channel), self._loop, self._inflow, self._max, self._close_soon, bounded=True
         )
-        label = wrapped.label
-        reason = self._refusal(
-            label, wrapped.ordered, wrapped.maxRetransmits, wrapped.maxPacketLifeTime
-        )
-        if reason is None and label in self._labels:
-            reason = "second"
-        if reason is not None:
-            with contextlib.suppress(RuntimeError):
-                channel.close()
-            hop.post("_refused", label, reason)
-            return
-        self._labels.add(label)
-        hop.post("_got_channel", wrapped)  # first: the loop takes it before its messages
-        wrapped.listen()
-
-    @staticmethod
-    def _refused(label: str, reason: str) -> None:
-        logger.info("event=channel_refused label=%r reason=%s", label, reason)
-
-    def _got_channel(self, channel: NativeDataChannel) -> None:
-        if self._channel_handler is not None:
-            self._channel_handler(channel)
-        else:
-            channel.close()
-
-    def _close_soon(self) -> None:
-        """Close the peer connection (a channel of it closed, from the loop)."""
-        if self._hop.target is not None:
-            task = self._loop.create_task(self.close())
-            self._closing.add(task)
-            task.add_done_callback(self._closing.discard)
+        self.admit(hop, channel, wrapped)
 
     def _state(self, name: str) -> None:
         state = _STATES.get(name, "failed")
         if self.connectionState not in (state, "closed"):
-            self.connectionState = state
-            for handler in list(self._handlers.get("connectionstatechange", ())):
-                handler()
+            self.state_changed(state)
             if state == "connected":
-                task = self._loop.create_task(self._log_path())
-                self._closing.add(task)
-                task.add_done_callback(self._closing.discard)
+                self.run_soon(self._log_path())
 
     async def _log_path(self) -> None:
         """Log the candidate pair ICE chose: its local candidate's type and TURN transport.
