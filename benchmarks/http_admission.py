@@ -63,9 +63,9 @@ HOLD_S = 5.0
 SETTLE_S = 3.0  # after they closed: the refused sockets' drain (2 s) and the allocator
 PIECE = 256 * 1024
 FRAGMENT_MEMORY = 256 * MiB  # --max-fragment-memory's default
-HOST_SHARE = FRAGMENT_MEMORY // 4  # rwt_transports.pending.HOST_INPUT_SHARE
+HOST_SHARE = FRAGMENT_MEMORY // 4  # rwt_transports.admission.pending.HOST_INPUT_SHARE
 SLACK = 48 * MiB  # the sockets' own buffers and the allocator's (attack_kit's bounds, too)
-HEAP_KEEP_MIB = 64  # rwt serve --heap-keep's default (rwt_transports.allocator.HEAP_KEEP_MIB)
+HEAP_KEEP_MIB = 64  # --heap-keep's default (rwt_transports.process.allocator.HEAP_KEEP_MIB)
 HEAD = (
     "POST /api/topics/held?type=std_msgs/msg/String HTTP/1.1\r\nHost: x\r\n"
     "Content-Type: application/json\r\nContent-Length: {length}\r\n\r\n"

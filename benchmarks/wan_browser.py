@@ -291,8 +291,8 @@ def figures(rows: list[float], warmup_s: float, *, video: bool = False) -> dict[
 
 
 def available_stacks() -> list[str]:
-    """The WebRTC stacks that import here (``webrtc_stacks.stack_refusal``)."""
-    from rwt_transports.webrtc_stacks import stack_refusal  # noqa: PLC0415
+    """The WebRTC stacks that import here (``webrtc.stacks.stack_refusal``)."""
+    from rwt_transports.webrtc.stacks import stack_refusal  # noqa: PLC0415
 
     return [stack for stack in STACK_PORTS if stack_refusal(stack) is None]
 
@@ -302,7 +302,7 @@ async def robot(rate: float, stacks: list[str], video: bool) -> None:
     with ``video`` the camera (``wan_topic.CAMERA``: encoded only while a track plays it)."""
     from rwt_graph.graph import Graph  # noqa: PLC0415 (the robot process only)
     from rwt_transports.server import RosbridgeServer, ServerConfig  # noqa: PLC0415
-    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+    from rwt_transports.webrtc.signalling import WebRtcOptions  # noqa: PLC0415
 
     logging.basicConfig(stream=sys.stderr, level=logging.WARNING)
     logging.getLogger("rwt").setLevel(logging.INFO)

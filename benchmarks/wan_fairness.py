@@ -1,6 +1,6 @@
 """A data channel beside a TCP download through a 2 Mbit/s bottleneck: does TCP keep its share?
 
-The reactor stack tunes dcsctp's congestion control (``webrtc_reactor.SCTP_TUNING``:
+The reactor stack tunes dcsctp's congestion control (``webrtc.reactor.SCTP_TUNING``:
 a window never below 16 packets after a loss, D70). A floor that does not back off
 could starve a TCP flow on a narrow link. Here the robot sends two bulk flows to
 the browser through benchmarks/wanlink.py's link (2 Mbit/s, 30 ms each way, no
@@ -77,7 +77,7 @@ async def _dc_sender(stack: str, offer: str, gate: threading.Event) -> str:
         return str(pc.localDescription.sdp)
     import reactor_webrtc as rw  # noqa: PLC0415
 
-    from rwt_transports.webrtc_reactor import SCTP_TUNING, add_candidates  # noqa: PLC0415
+    from rwt_transports.webrtc.reactor import SCTP_TUNING, add_candidates  # noqa: PLC0415
 
     builder = rw.PeerConnectionFactoryBuilder()
     if stack == "reactor":

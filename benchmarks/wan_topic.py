@@ -165,7 +165,7 @@ async def _native_channel(base: str, topic: str, *, lossy: bool) -> AsyncIterato
     import libdatachannel as ldc  # noqa: PLC0415 (optional: Python 3.12+)
 
     from benchmarks.webrtc import gathered  # noqa: PLC0415
-    from rwt_transports.webrtc_native import Inflow, NativeDataChannel  # noqa: PLC0415
+    from rwt_transports.webrtc.native import Inflow, NativeDataChannel  # noqa: PLC0415
 
     base = base.replace(f":{PORT}", f":{NATIVE_PORT}")
     loop = asyncio.get_running_loop()
@@ -483,13 +483,13 @@ async def robot(rate: float, trace_sctp: bool = False) -> None:
     sender's state in its log (benchmarks/sctp_trace.py)."""
     from rwt_graph.graph import Graph  # noqa: PLC0415 (the robot process only)
     from rwt_transports.server import RosbridgeServer, ServerConfig  # noqa: PLC0415
-    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+    from rwt_transports.webrtc.signalling import WebRtcOptions  # noqa: PLC0415
     from rwt_video import VideoConfig, serve_video  # noqa: PLC0415
 
     logging.basicConfig(stream=sys.stderr, level=logging.WARNING)
     logging.getLogger("rwt").setLevel(logging.INFO)  # event=disconnect: the session's drops
     graph = Graph()
-    from rwt_transports.webrtc_native import native_missing  # noqa: PLC0415
+    from rwt_transports.webrtc.native import native_missing  # noqa: PLC0415
 
     config = ServerConfig(host=ROBOT_ADDR, port=PORT, webrtc=WebRtcOptions(stack="aiortc"))
     server = RosbridgeServer(graph, config)
@@ -686,7 +686,7 @@ def main() -> None:
         args.delay_ms / 1000, args.jitter_ms / 1000, args.loss, args.rate_mbit * 1e6
     )
     chosen = args.transport or [*TRANSPORTS, *PICTURES]
-    from rwt_transports.webrtc_native import native_missing  # noqa: PLC0415
+    from rwt_transports.webrtc.native import native_missing  # noqa: PLC0415
 
     if (missing := native_missing()) is not None and any("native" in t for t in chosen):
         print(f"without the native stack's rows: {missing}", file=sys.stderr)

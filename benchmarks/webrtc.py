@@ -47,7 +47,7 @@ import msgspec
 from websockets.asyncio.client import connect as ws_connect
 
 import rwt
-from rwt_transports.webrtc_native import Inflow, NativeDataChannel, native_missing
+from rwt_transports.webrtc.native import Inflow, NativeDataChannel, native_missing
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator
@@ -244,7 +244,7 @@ def _ldc() -> Any:
 
 async def gathered(ldc: Any, pc: Any) -> None:
     """Wait until ``pc`` gathered its candidates: polled, not a callback, as the server
-    does (rwt_transports.webrtc_native: a callback could wait for the GIL while
+    does (rwt_transports.webrtc.native: a callback could wait for the GIL while
     ``set_remote_description`` holds it)."""
     complete = ldc.PeerConnection.GatheringState.Complete
     while pc.gathering_state() != complete:  # noqa: ASYNC110 (the docstring)

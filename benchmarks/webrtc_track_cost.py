@@ -6,7 +6,7 @@ viewer of a topic, encoded once) is sent to N viewers from a "robot" process, on
 stack in turn:
 
 - **aiortc**: a peer connection per viewer answering its offer, the track yielding the
-  encoded packets (``av.Packet``) as rwt's ``webrtc_video.VideoTrack`` does, so aiortc
+  encoded packets (``av.Packet``) as rwt's ``webrtc.video.VideoTrack`` does, so aiortc
   only cuts them into RTP packets, encrypts them (SRTP) and paces them, in Python;
 - **native**: libdatachannel (``libdatachannel-py``), a peer connection per viewer, the
   offered track with libdatachannel's H.264 packetizer, RTCP sender reports and NACK
@@ -17,7 +17,7 @@ With ``--through rwt`` the robot is rwt's own server instead (``RosbridgeServer`
 graph), and each viewer posts its offer to ``/webrtc?video=/camera/image`` preferring
 H.264: the whole path, its shared encoder included (paid once whatever the viewers, so
 the difference between the stacks is the viewers' cost). On the native stack
-libdatachannel sends the track (``webrtc_native_video.py``), on aiortc aiortc does.
+libdatachannel sends the track (``webrtc/native_video.py``), on aiortc aiortc does.
 
 The viewers are aiortc peers in another process (receive only, H.264, decoding each
 frame); the table gives the robot process's CPU (every thread, from ``/proc``) while
@@ -29,7 +29,7 @@ cheaper for the robot (issue's "video where it is cheapest").
 Run (Python 3.12+ with the ``webrtc`` extra, both stacks):
 ``python -m benchmarks.webrtc_track_cost [--viewers 1,4,8] [--seconds 8] [--through rwt]``.
 ``--codec VP8``: the stream and the viewers are VP8 (libvpx); on the native stack the
-packets are made as rwt makes them there (``webrtc_native_video.Vp8Rtp``: aiortc's VP8
+packets are made as rwt makes them there (``webrtc.native_video.Vp8Rtp``: aiortc's VP8
 payloader, libdatachannel's SRTP, reports and NACK responder).
 Results: ``results/webrtc_track_cost.json`` (``webrtc_track_cost_rwt.json`` through rwt;
 ``_vp8`` before ``.json`` with VP8).
@@ -142,7 +142,7 @@ async def _answer_aiortc(offers: list[str], units: list[bytes]) -> tuple[list[An
     from aiortc import MediaStreamTrack, RTCPeerConnection, RTCSessionDescription  # noqa: PLC0415
 
     class Packets(MediaStreamTrack):
-        """The encoded stream at 30 Hz, as ``webrtc_video.VideoTrack`` hands aiortc packets."""
+        """The encoded stream at 30 Hz, as ``webrtc.video.VideoTrack`` hands aiortc packets."""
 
         kind = "video"
 
@@ -176,7 +176,7 @@ def _answer_native(offers: list[str], name: str) -> tuple[list[Any], list[Any], 
     """libdatachannel's answers; each track with its VP8 packetizer (None for H.264)."""
     import libdatachannel as ldc  # noqa: PLC0415 (Python 3.12+)
 
-    from rwt_transports.webrtc_native_video import Vp8Rtp  # noqa: PLC0415
+    from rwt_transports.webrtc.native_video import Vp8Rtp  # noqa: PLC0415
 
     peers, tracks, answers = [], [], []
     for index, sdp in enumerate(offers):
@@ -242,7 +242,7 @@ def _rwt(stack: str, pipe: Any, out: Any, name: str = "H264") -> None:
 
     from rwt import Graph, RosbridgeServer, ServerConfig  # noqa: PLC0415
     from rwt_graph.media import array_to_image  # noqa: PLC0415
-    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+    from rwt_transports.webrtc.signalling import WebRtcOptions  # noqa: PLC0415
 
     frames = _frames()
 

@@ -196,7 +196,7 @@ async def _robot() -> None:
 
     from benchmarks.paper.video import messages  # noqa: PLC0415
     from rwt import Graph, RosbridgeServer, ServerConfig  # noqa: PLC0415
-    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+    from rwt_transports.webrtc.signalling import WebRtcOptions  # noqa: PLC0415
 
     frames = list(messages(4))
     graph = Graph()

@@ -19,7 +19,7 @@ object as a ROS 2 program does: what a user would otherwise pick to move ROS
 messages between two Python processes.
 
 Every process of both pairs keeps 64 MiB of freed heap for the next message
-(``rwt_transports.allocator.tune_allocator``), as ``rwt serve`` does by default
+(``rwt_transports.process.allocator.tune_allocator``), as ``rwt serve`` does by default
 (``--heap-keep``): with glibc's defaults each 1 MB buffer (the CDR, Zenoh's copy,
 the decoded bytes) is mapped afresh, and a 1 MB message cost each side about
 500 page faults and four times the CPU. The rate is messages
@@ -167,7 +167,7 @@ async def _sender(endpoint: str, size: int, count: int) -> None:
 
 BARE_SUB = f"""
 import sys, time, threading, zenoh
-from rwt_transports.allocator import tune_allocator
+from rwt_transports.process.allocator import tune_allocator
 tune_allocator({HEAP_KEEP})
 ep, count = sys.argv[1], int(sys.argv[2])
 c = zenoh.Config()
@@ -201,7 +201,7 @@ s.close()
 
 BARE_PUB = f"""
 import sys, time, threading, zenoh
-from rwt_transports.allocator import tune_allocator
+from rwt_transports.process.allocator import tune_allocator
 tune_allocator({HEAP_KEEP})
 ep, count, size = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 c = zenoh.Config()
@@ -230,7 +230,7 @@ s.close()
 RCLPY_COMMON = f"""
 import sys, time, threading, rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy, DurabilityPolicy
-from rwt_transports.allocator import tune_allocator
+from rwt_transports.process.allocator import tune_allocator
 tune_allocator({HEAP_KEEP})
 count, size = int(sys.argv[1]), int(sys.argv[2])
 if size == 100:
@@ -429,7 +429,7 @@ async def run_pair(kind: str, size: int, count: int, endpoint: str) -> dict[str,
 
 def main(argv: list[str]) -> int:
     """``receive|send ENDPOINT SIZE COUNT``: one side of a link transfer (for ``run_pair``)."""
-    from rwt_transports.allocator import tune_allocator  # noqa: PLC0415
+    from rwt_transports.process.allocator import tune_allocator  # noqa: PLC0415
 
     tune_allocator(HEAP_KEEP)
     role, endpoint, size, count = argv[0], argv[1], int(argv[2]), int(argv[3])

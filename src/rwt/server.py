@@ -34,16 +34,17 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.access import AccessDeniedError, AccessPolicy, Family, TopicUse
     from rwt_protocol.server.compat import Compat
     from rwt_protocol.shortcuts import shortcut_report
-    from rwt_transports.allocator import tune_allocator
     from rwt_transports.foxglove import FoxgloveOptions
-    from rwt_transports.mcp_options import McpOptions
-    from rwt_transports.mcp_siblings import McpSiblings
+    from rwt_transports.host import Admitted
+    from rwt_transports.http.mcp_options import McpOptions
+    from rwt_transports.http.mcp_siblings import McpSiblings
     from rwt_transports.memory import MemoryConnection
-    from rwt_transports.placement import Placement
-    from rwt_transports.server import Admitted, rosauth_authenticator
-    from rwt_transports.udp import UdpOptions
-    from rwt_transports.webrtc_signal import WebRtcOptions
+    from rwt_transports.process.allocator import tune_allocator
+    from rwt_transports.server import rosauth_authenticator
+    from rwt_transports.udp.transport import UdpOptions
+    from rwt_transports.webrtc.signalling import WebRtcOptions
     from rwt_transports.websocket import WebSocketOptions
+    from rwt_transports.workers.placement import Placement
 
 __all__ = [
     "AccessDeniedError",

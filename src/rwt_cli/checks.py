@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 import typer
 
 from rwt_protocol.errors import ConfigError
-from rwt_transports.webrtc_ice import parse_ice_servers
-from rwt_transports.webrtc_stacks import stack_refusal
+from rwt_transports.webrtc.ice import parse_ice_servers
+from rwt_transports.webrtc.stacks import stack_refusal
 
 if TYPE_CHECKING:
     from collections.abc import Iterator
@@ -105,7 +105,7 @@ def check_ice_servers(urls: list[str] | None) -> list[str] | None:
     """Typer callback: the ``--ice-server`` URLs are ones aiortc can use, one STUN and one TURN.
 
     Raises:
-        OptionError: the reason ``rwt_transports.webrtc_ice.parse_ice_servers`` gives.
+        OptionError: the reason ``rwt_transports.webrtc.ice.parse_ice_servers`` gives.
     """
     try:
         parse_ice_servers(urls or ())
@@ -115,12 +115,12 @@ def check_ice_servers(urls: list[str] | None) -> list[str] | None:
 
 
 def check_webrtc_stack(stack: str) -> str:
-    """Typer callback: ``--webrtc-stack`` is one of ``webrtc_native.STACKS``, and usable here.
+    """Typer callback: ``--webrtc-stack`` is one of ``webrtc.native.STACKS``, and usable here.
 
     Raises:
         OptionError: another name, or a stack that does not import here (``native``:
             libdatachannel-py, Python 3.12+, D51; ``reactor``: reactor-webrtc, D70;
-            ``webrtc_stacks.stack_refusal`` says why).
+            ``webrtc.stacks.stack_refusal`` says why).
     """
     if (refused := stack_refusal(stack)) is not None:
         raise OptionError(refused)

@@ -10,7 +10,7 @@ import typer
 
 from rwt_graph.graph import Graph
 from rwt_graph.types import TypeRegistry
-from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
+from rwt_transports.process.allocator import HEAP_KEEP_MIB, tune_allocator
 from rwt_transports.server import GraphServer, ServerConfig
 
 from .bag_options import (

@@ -12,7 +12,7 @@ from rwt_bag.errors import BagError
 from rwt_bag.formats import BagFormat, ChunkCompression
 from rwt_graph.types import TypeRegistry
 from rwt_protocol.errors import RwtError
-from rwt_transports.allocator import HEAP_KEEP_MIB, tune_allocator
+from rwt_transports.process.allocator import HEAP_KEEP_MIB, tune_allocator
 
 from .bag_options import (
     FORMAT_HELP,

@@ -10,7 +10,7 @@ import contextlib
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import ConfigError
-from rwt_transports.gcfreeze import freeze_startup_objects
+from rwt_transports.process.gcfreeze import freeze_startup_objects
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator

@@ -17,8 +17,8 @@ from urllib.parse import urlsplit
 import anyio
 
 from rwt_bag.errors import BagError
-from rwt_transports.allocator import keep_trimmed
 from rwt_transports.listen import ListenError
+from rwt_transports.process.allocator import keep_trimmed
 
 from .ros2_link import linked_ros2
 from .zenoh_link import linked
@@ -54,7 +54,7 @@ async def run_server(
     stdout (stderr with ``--stdio``) gets a ``listening on URL`` line a listener,
     then ``video on URL``. With ``heap_trim_s``, the process's free heap is given
     back every that many seconds, the top of the heap keeping ``heap_keep`` bytes
-    (``--heap-trim``, ``--heap-keep``: ``rwt_transports.allocator.keep_trimmed``).
+    (``--heap-trim``, ``--heap-keep``: ``rwt_transports.process.allocator.keep_trimmed``).
 
     Raises:
         ListenError: a listener, or the video server, could not bind its address.

@@ -29,21 +29,21 @@ from rwt_graph.types import Dialect, TypeRegistry
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.access import AccessPolicy, parse_glob_list, parse_split_glob
 from rwt_protocol.server.session import SessionConfig
-from rwt_transports.allocator import tune_allocator
-from rwt_transports.fdlimit import raise_nofile_limit
 from rwt_transports.foxglove import FoxgloveOptions
-from rwt_transports.gcfreeze import freeze_startup_objects
-from rwt_transports.mcp_options import McpOptions
-from rwt_transports.mcp_siblings import McpSiblings
-from rwt_transports.placement import Placement
+from rwt_transports.http.mcp_options import McpOptions
+from rwt_transports.http.mcp_siblings import McpSiblings
+from rwt_transports.process.allocator import tune_allocator
+from rwt_transports.process.fdlimit import raise_nofile_limit
+from rwt_transports.process.gcfreeze import freeze_startup_objects
 from rwt_transports.server import GraphServer, ServerConfig, rosauth_authenticator
-from rwt_transports.udp import UdpOptions
-from rwt_transports.webrtc_ice import parse_ice_servers
-from rwt_transports.webrtc_native import native_ice_refusal
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.udp.transport import UdpOptions
+from rwt_transports.webrtc.ice import parse_ice_servers
+from rwt_transports.webrtc.native import native_ice_refusal
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
-from rwt_transports.worker_counts import ConnectionCountWriter
-from rwt_transports.workers import parse_listen_fds, run_workers
+from rwt_transports.workers.counts import ConnectionCountWriter
+from rwt_transports.workers.placement import Placement
+from rwt_transports.workers.supervisor import parse_listen_fds, run_workers
 
 from .bag_options import (
     bag_jobs,

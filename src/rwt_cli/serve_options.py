@@ -21,8 +21,8 @@ from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET
 from rwt_protocol.runtime.rules import HOLD_BUDGET_S
 from rwt_protocol.server.compat import Compat
-from rwt_transports.allocator import HEAP_KEEP_MIB, HEAP_TRIM_S
-from rwt_transports.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
+from rwt_transports.admission.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
+from rwt_transports.process.allocator import HEAP_KEEP_MIB, HEAP_TRIM_S
 from rwt_zenoh.limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 
 from .bag_options import (

@@ -16,7 +16,7 @@ import typer
 
 from rwt_protocol.distribution import install_hint
 from rwt_protocol.errors import ConfigError
-from rwt_transports.gcfreeze import freeze_startup_objects
+from rwt_transports.process.gcfreeze import freeze_startup_objects
 
 if TYPE_CHECKING:
     from collections.abc import AsyncIterator

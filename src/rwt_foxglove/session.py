@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Final
 
@@ -96,7 +97,8 @@ if TYPE_CHECKING:
     from rwt_graph.port import GraphFront
     from rwt_graph.types import MessageType
     from rwt_protocol.ports import MessageEvent, PublishNote
-    from rwt_protocol.runtime.contract import Job
+    from rwt_protocol.qos import QosProfile
+    from rwt_protocol.runtime.jobs import Job
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.timers import Timer
 
@@ -147,11 +149,22 @@ class _ClientChannel:
 class _TopicSink:
     """The graph's subscriber of one topic for this client: queues message data."""
 
-    __slots__ = ("_channel", "_session")
+    __slots__ = ("_channel", "_ends", "_session")
 
     def __init__(self, session: FoxgloveSession, channel: _ServerChannel) -> None:
         self._session = session
         self._channel = channel
+        self._ends = False  # the topic's offer gives its messages an end (D63)
+
+    def on_qos_offered(
+        self, offered: QosProfile | None, reasons: list[str], latest: Callable[[], float]
+    ) -> None:
+        """The topic's QoS (``rwt_graph.topic_qos``): whether its messages have an end (D63).
+
+        A topic whose offer has no lifespan, and one without QoS (never told),
+        queue their runs without looking at each message's end.
+        """
+        self._ends = offered is not None and offered.lifespan_s != math.inf
 
     def on_message(
         self, event: MessageEvent, subscriptions: list[int] | tuple[int, ...] | None = None
@@ -184,7 +197,9 @@ class _TopicSink:
         frame (header and payload) is made once per message, subscription id
         and log time, and every client subscribed with that id queues the same
         one (in ``event.memos``). Here, not in the session, and in one body:
-        two Python calls less per message of a burst.
+        two Python calls less per message of a burst. Messages with a lifespan
+        (their topic's, or ``--qos-lifespan``) are queued in runs of one end
+        (``SessionBase.message_end``, D63): never sent after it.
         """
         session, channel = self._session, self._channel
         if subscriptions is None:
@@ -193,13 +208,23 @@ class _TopicSink:
             return
         clock = session._time
         now = None if clock is None else clock.now()
-        share = session._share
+        share, topic = session._share, channel.topic
+        timeless = session.config.qos_lifespan_s == math.inf  # no server lifespan (D63)
+        ends = self._ends or not timeless  # else no message of the batch has an end
         # on the bag's clock, told first (a client reads time from it)
         time_frame = None if now is None else session._time_frame(now)
         run: list[OutFrame] = [] if time_frame is None else [time_frame]
         append = run.append
+        run_end, run_now = math.inf, events[-1].now  # the run's end (D63) and latest time
         try:  # fails for the first frame or none: a message's frames share payload and time
             for event in events:
+                if ends:  # a run of one end each (``message_end``)
+                    end = event.expires if timeless else session.message_end(event)
+                    if end != run_end:
+                        session.queue_run(run, topic, run_now, 0.0, run_end)
+                        run, run_end = [], end
+                        append = run.append
+                    run_now = event.now
                 memos = event.memos if share else {}  # the shortcut off: one for each
                 for sid in subscriptions:  # (not a comprehension: its closure costs a call)
                     # made once per message, subscription id and log time (which a bag's
@@ -219,7 +244,7 @@ class _TopicSink:
                     append(frame)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
-        session.queue_run(run, channel.topic, events[-1].now)
+        session.queue_run(run, topic, run_now, 0.0, run_end)
 
 
 class FoxgloveSession(SessionBase):

@@ -38,6 +38,7 @@ from rwt_protocol.ports import (
     GoalFeedback,
     GoalHandle,
     MessageEvent,
+    OfferWatch,
     Pending,
     PublishNotes,
     ServiceProvider,
@@ -280,6 +281,7 @@ class GraphCore:
         *,
         latch: bool = False,
         qos: QosProfile | None = None,
+        watch: OfferWatch | None = None,
     ) -> str:
         """Register ``client`` as a publisher of ``topic`` (spec 3.3.1); ``latch`` latches (D13).
 
@@ -287,6 +289,7 @@ class GraphCore:
         2.1.0): the first publisher that gives one fixes the topic's offered QoS
         while such a publisher remains (``topic_qos``, D62); ``latch`` is then
         read no more than the reference reads it (not at all for the offer).
+        ``watch``: with ``qos``, told of the offer as it goes (D64, D65).
 
         Returns:
             The canonical type name.
@@ -304,7 +307,7 @@ class GraphCore:
         self._hold(client, entry.name)
         if qos is not None:
             self.flush()  # a batch goes before the topic's messages go one by one
-            self.topic_qos(entry).add_publisher(client, qos)
+            self.topic_qos(entry).add_publisher(client, qos, watch)
         self.feed.put(PUBLISHER, entry.name, client, entry.msgtype.name, latched=latched)
         return entry.msgtype.name
 

@@ -28,6 +28,13 @@ delivery is what it always was (D13's latching, no per-message work here).
   topic's delivery while the offer stands, as ROS 2 leaves such a pair
   unmatched; its sink is told why (``on_qos_offered``), and the session warns
   its client. Its subscription stays, and resumes when the offer goes.
+- **Publishers told** (D64, D65). A publisher registration with a ``qos`` may
+  give a watch (``OfferWatch``): it is told the offer (and the time of the
+  topic's latest message, for the offer's deadline) at registration, whenever
+  it changes, and None once its client no longer publishes with one; and, once
+  per episode, that a subscription asks what the offer cannot meet (ROS 2's
+  "offered incompatible QoS"): from the first subscriber left out until none
+  is, or the offer changes.
 - **Sinks** that have ``on_qos_offered(offered, reasons, latest)`` are told the
   topic's offer when they subscribe and whenever it changes, with the reasons
   they are left out (empty when they are not) and a function giving the
@@ -51,7 +58,7 @@ from .ratelog import EpisodeLog
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from rwt_protocol.ports import ClientId, MessageEvent, TopicSink
+    from rwt_protocol.ports import ClientId, MessageEvent, OfferWatch, TopicSink
 
     from .topics import Topic
 
@@ -117,6 +124,7 @@ class TopicQos:
         asked: each publisher that registered with a ``qos``: what it asked.
         requested: each subscriber that subscribed with a ``qos``: what it asked.
         excluded: subscribers left out of the delivery (D64), with their reasons.
+        watches: the publishers' watches (``OfferWatch``), by client.
         store: the kept messages, oldest first (transient local, D63).
     """
 
@@ -135,6 +143,8 @@ class TopicQos:
         self.asked: dict[ClientId, QosProfile] = {}
         self.requested: dict[ClientId, QosProfile] = {}
         self.excluded: dict[ClientId, list[str]] = {}
+        self.watches: dict[ClientId, OfferWatch] = {}
+        self._told_incompatible: set[ClientId] = set()  # publishers told this episode (D64)
         self.store: deque[MessageEvent] = deque()
         self._store_sizes: deque[int] = deque()
         self.store_bytes = 0
@@ -147,14 +157,31 @@ class TopicQos:
 
     # ---- registrations -------------------------------------------------------------
 
-    def add_publisher(self, client: ClientId, qos: QosProfile) -> None:
-        """``client`` publishes with ``qos``: the first such fixes the offer (D62)."""
+    def add_publisher(
+        self, client: ClientId, qos: QosProfile, watch: OfferWatch | None = None
+    ) -> None:
+        """``client`` publishes with ``qos``: the first such fixes the offer (D62).
+
+        ``watch`` is told the offer now and as it goes (module text).
+        """
         self.asked[client] = qos
+        if watch is not None:
+            replaced = self.watches.get(client)
+            if replaced is not None and replaced is not watch:
+                self._call_watch(replaced.on_offer, None, self.latest)  # the latest one's turn
+            self.watches[client] = watch
+            self._told_incompatible.discard(client)  # a new registration: told anew
         if self.offered is None:
             self._offer(qos.for_publisher())
+        elif watch is not None:
+            self._tell_watch(client, watch)
 
     def remove_publisher(self, client: ClientId) -> None:
         """``client`` no longer publishes: the offer ends with the last that asked one."""
+        watch = self.watches.pop(client, None)
+        self._told_incompatible.discard(client)
+        if watch is not None:
+            self._call_watch(watch.on_offer, None, self.latest)
         if self.asked.pop(client, None) is not None and not self.asked:
             self._offer(None)
 
@@ -172,6 +199,8 @@ class TopicQos:
         self.requested.pop(client, None)
         if self.excluded.pop(client, None) is not None:
             self.topic.changed()
+            if not self.excluded:
+                self._told_incompatible.clear()  # the episode ends (D64)
 
     def resolved(self, client: ClientId) -> QosProfile | None:
         """What subscriber ``client`` asked, resolved against the offer; None: nothing asked."""
@@ -187,20 +216,50 @@ class TopicQos:
             self.excluded[client] = reasons
         else:
             self.excluded.pop(client, None)
+            if not self.excluded:
+                self._told_incompatible.clear()  # the episode ends (D64)
         if bool(before) != bool(reasons):
             self.topic.changed()
+        if reasons and offered is not None:
+            for publisher, watch in list(self.watches.items()):
+                if publisher not in self._told_incompatible:
+                    self._told_incompatible.add(publisher)
+                    self._call_watch(watch.on_incompatible, offered, reasons)
         return reasons
 
     def _offer(self, offered: QosProfile | None) -> None:
-        """Make ``offered`` the topic's offer; judge and tell every subscriber again."""
+        """Make ``offered`` the topic's offer; tell the watches; judge and tell every subscriber."""
         self.offered = offered
+        self._told_incompatible.clear()  # a new offer, a new episode (D64)
         if offered is None or not offered.transient_local:
             self.budget.used -= self.store_bytes
             self.store.clear()
             self._store_sizes.clear()
             self.store_bytes = 0
+        for watch in list(self.watches.values()):
+            self._call_watch(watch.on_offer, offered, self.latest)
         for client, sink in list(self.topic.subscribers.items()):
             self._tell(sink, self._judge(client))
+
+    def _tell_watch(self, client: ClientId, watch: OfferWatch) -> None:
+        """Tell a publisher's watch the offer; and of a subscriber left out, if any is (D64)."""
+        self._call_watch(watch.on_offer, self.offered, self.latest)
+        offered = self.offered
+        if offered is not None and self.excluded and client not in self._told_incompatible:
+            self._told_incompatible.add(client)
+            self._call_watch(watch.on_incompatible, offered, next(iter(self.excluded.values())))
+
+    def _call_watch(self, call: Callable[..., None], *args: object) -> None:
+        try:
+            call(*args)
+        except Exception:  # a broken publisher must not hurt the others
+            _episodes.log(
+                logging.ERROR,
+                f"qos_watch_failed {self.topic.name}",
+                "a publisher of %s failed to take its QoS",
+                self.topic.name,
+                exc_info=True,
+            )
 
     def _tell(self, sink: TopicSink, reasons: list[str]) -> None:
         told = getattr(sink, "on_qos_offered", None)

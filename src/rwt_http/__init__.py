@@ -11,18 +11,20 @@ Foxglove client. The modules, each over the next:
 - ``document``: the OpenAPI document made in slices, once per change of the graph,
   and kept per set of access rules (D59).
 - ``openapi``: the OpenAPI 3.1 document's parts (``GET /openapi.json``).
+- ``standing``: the registrations that keep a publish's ``qos`` past its request.
 - ``routes``: a request's method and target read as a ``Route``.
 - ``wire``: the bytes of a response and of a Server-Sent Event.
 
 The transport's side (reading the request, the bearer token, running the pump)
-is ``rwt_transports.http_api``; the document's builds run in
-``rwt_transports.http_documents``.
+is ``rwt_transports.http.api``; the document's builds run in
+``rwt_transports.http.documents``.
 """
 
 from __future__ import annotations
 
 from .routes import API_PREFIX, OPENAPI_PATH, Route, RouteError, RouteKind, parse_route
 from .session import HttpApiOptions, HttpSession
+from .standing import StandingOffers
 
 __all__ = [
     "API_PREFIX",
@@ -32,5 +34,6 @@ __all__ = [
     "Route",
     "RouteError",
     "RouteKind",
+    "StandingOffers",
     "parse_route",
 ]

@@ -4,7 +4,7 @@ A graph of 5,000 topics makes a 12 MB document that took 0.15 s of CPU to make;
 made for every request on the event loop, four clients fetching it took a core.
 So a document is made by a ``DocumentBuild``, a slice at a time
 (``STEP_ENTITIES`` entities, a few milliseconds, ``step``), which its driver
-(``rwt_transports.http_documents``) runs with a turn of the loop between two
+(``rwt_transports.http.documents``) runs with a turn of the loop between two
 slices, and is kept by a ``DocumentCache``, one per served graph, by the access
 rules it was made for. It is made again only when the graph's change feed
 moved (``ChangeFeed.version``) and what the document lists changed with it: a

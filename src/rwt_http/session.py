@@ -1,7 +1,7 @@
 """One HTTP API request as a session of the connection runtime (docs/http.md).
 
 ``HttpSession`` subclasses ``SessionBase`` (docs/architecture.md, "How to add a
-protocol"): the transport (``rwt_transports.http_api``) reads the request, the
+protocol"): the transport (``rwt_transports.http.api``) reads the request, the
 server admits it as any connection (``--max-connections``, the host shares) and
 the pump runs the session; the request's body is its one frame. It answers with
 one whole response and closes, or, for an event stream (a topic's ``/events``,
@@ -57,6 +57,7 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.rules import ClientRules
 
     from .document import Document, DocumentSource
+    from .standing import StandingOffers
 
 __all__ = ["HttpApiOptions", "HttpSession"]
 
@@ -96,6 +97,8 @@ class HttpSession(SessionBase):
             None: made here at once, whole.
         if_none_match: the request's ``If-None-Match`` header: the document is
             answered 304 when it names the current one.
+        offers: the API's standing registrations, which keep a publish's ``qos``
+            past its request (``standing``, D63); None: it lasts the request.
     """
 
     protocol = "http"
@@ -117,6 +120,7 @@ class HttpSession(SessionBase):
         memory: MemoryBudget | None = None,
         documents: DocumentSource | None = None,
         if_none_match: str | None = None,
+        offers: StandingOffers | None = None,
     ) -> None:
         super().__init__(
             graph,
@@ -137,9 +141,10 @@ class HttpSession(SessionBase):
         self._head_only = head_only
         self._documents = documents
         self._if_none_match = if_none_match
+        self._offers = offers
         self._answered = False  # a response (or a stream's head) is queued
         self._streaming = False
-        self._holds = False  # a subscription or a call waits in the graph
+        self._holds = False  # a subscription waits in the graph (a call: the call book)
         self._last_sent = -1.0e18  # an event stream's last message (throttle_rate)
         self._stream_rule: QueueRule | None = None  # an event stream's QoS (``stream_qos``)
         self._stream_lifespan_s = math.inf
@@ -169,7 +174,7 @@ class HttpSession(SessionBase):
 
     def holds_anything(self) -> bool:
         """Whether a subscription or a call of this request waits in the graph."""
-        return self._holds
+        return self._holds or self.calls.in_flight > 0
 
     # ---- the request --------------------------------------------------------------
 
@@ -291,10 +296,29 @@ class HttpSession(SessionBase):
         if any(note.dropped for note in notes):  # the safety envelope's rate (docs/safety.md)
             self._answer(429, {"error": "; ".join(note.text for note in notes)})
             return
+        warnings = [note.text for note in notes]  # a request is one command (D67)
+        if route.qos is not None:
+            warnings += self._keep_offer(route.name, type_name, route.qos)
         answer: dict[str, object] = {"topic": route.name, "type": type_name}
-        if notes:  # a request is one command: each is told what the envelope did (D67)
-            answer["warnings"] = [note.text for note in notes]
+        if warnings:
+            answer["warnings"] = warnings
         self._answer(200, answer)
+
+    def _keep_offer(self, topic: str, type_name: str, qos: QosProfile) -> list[str]:
+        """Keep the publish's ``qos`` past the request (``standing``, D63); what to warn of.
+
+        A topic that keeps another registration's QoS is said so, as a rosbridge
+        client's ``advertise`` is (D62).
+        """
+        if self._offers is not None:
+            self._offers.hold(topic, type_name, qos)
+        offered = self.graph.offered_qos(topic)
+        if offered is None or offered == qos.for_publisher():
+            return []
+        return [
+            f"{topic} keeps the QoS of its first registration ({offered.describe()});"
+            f" this one's ({qos.describe()}) is not used"
+        ]
 
     def _events(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.TOPICS, route.name, "subscribe", TopicUse.SUBSCRIBE)
@@ -323,8 +347,10 @@ class HttpSession(SessionBase):
             return
         gap = self.route.throttle_rate_ms / 1000.0
         name = self.route.name
+        timeless = self.config.qos_lifespan_s == math.inf  # no server lifespan (D63)
         run: list[OutFrame] = []
         run_now = run_lifespan = 0.0
+        run_end = math.inf  # the run's end (``message_end``, D63)
         for each in events:
             if gap:
                 if each.now - self._last_sent < gap:
@@ -334,13 +360,16 @@ class HttpSession(SessionBase):
             if frame is None:  # (``encoded``, inline above: a call less per stream)
                 frame = each.encoded(_SSE_KEY, partial(_sse, each))
             lifespan = each.lifespan
-            if run and (lifespan != run_lifespan or (lifespan > 0 and each.now != run_now)):
-                self.queue_run(run, name, run_now, run_lifespan)
+            end = each.expires if timeless else self.message_end(each)
+            if run and (
+                lifespan != run_lifespan or end != run_end or (lifespan > 0 and each.now != run_now)
+            ):
+                self.queue_run(run, name, run_now, run_lifespan, run_end)
                 run = []
             run.append(frame)
             run_now = each.now if each.now > run_now else run_now
-            run_lifespan = lifespan
-        self.queue_run(run, name, run_now, run_lifespan)
+            run_lifespan, run_end = lifespan, end
+        self.queue_run(run, name, run_now, run_lifespan, run_end)
 
     def _send_ruled(self, events: Sequence[MessageEvent], rule: QueueRule) -> None:
         """Queue ``events`` of a stream with QoS, each with its lifespan's end (D63)."""
@@ -351,7 +380,7 @@ class HttpSession(SessionBase):
                     continue  # rosbridge's throttle_rate: at most one message a gap
                 self._last_sent = each.now
             frame = each.encoded(_SSE_KEY, partial(_sse, each))
-            expires = min(each.expires, each.now + self._stream_lifespan_s)
+            expires = self.message_end(each, self._stream_lifespan_s)
             self.send_frames((frame,), self.route.name, 0.0, rule, expires)
 
     def stream_qos(self, offered: QosProfile | None) -> None:
@@ -369,19 +398,27 @@ class HttpSession(SessionBase):
     def _service(self, route: Route, frame: str | bytes) -> None:
         self.require_access(Family.SERVICES, route.name, "call_service")
         args = self._body(frame, "call_service", required=False)
-        self._holds = True
+        calls = self.calls
+        booked = calls.book()  # settled once: the answer, the deadline or the close
 
         def reply(result: bool, values: object) -> None:
-            self._holds = False
+            if not booked.settle():
+                return
             if result:
                 self._answer(200, values)
             else:
                 self._answer(502, {"error": str(values)})
 
         timeout = self.config.call_timeout_s
-        self.graph.call_service(self.client_id, route.name, args, reply, timeout_s=timeout)
-        if timeout is not None and not self._answered:
-            self.call_at(self.now + timeout, lambda now: self._timed_out(timeout))
+        try:
+            booked.pending = self.graph.call_service(
+                self.client_id, route.name, args, reply, timeout_s=timeout
+            )
+        except RwtError:
+            booked.settle()
+            raise
+        if timeout is not None:
+            calls.expire_at(booked, self.now + timeout, lambda now: self._timed_out(timeout))
 
     def _timed_out(self, timeout: float) -> None:
         self._answer(504, {"error": f"no response within {timeout:g} s"})
@@ -398,6 +435,7 @@ class HttpSession(SessionBase):
             raise GraphError("send_action_goal: the body must be a JSON object (the goal)")
         early: list[OutFrame] = []
         ended = False
+        booked = self.calls.book()  # held until it ends: the goal's answer or the close
 
         def send(out: OutFrame) -> None:
             if self._streaming:
@@ -410,7 +448,7 @@ class HttpSession(SessionBase):
 
         def done(status: GoalStatus, result: bool, values: object) -> None:
             nonlocal ended
-            self._holds = False
+            booked.settle()
             value = {"status": int(status), "result": result, "values": values}
             send(OutFrame(event(encode_json(value), "result")))
             ended = True
@@ -418,8 +456,13 @@ class HttpSession(SessionBase):
                 self.request_close(CloseCode.NORMAL, "goal done")
 
         # raises UnknownNameError (404), FieldError (400) before anything is sent
-        self.graph.send_action_goal(self.client_id, route.name, goal, done, feedback)
-        self._holds = not ended
+        try:
+            booked.pending = self.graph.send_action_goal(
+                self.client_id, route.name, goal, done, feedback
+            )
+        except RwtError:
+            booked.settle()
+            raise
         self._open_stream()
         for out in early:
             self.send_frames((out,))

@@ -34,9 +34,10 @@ from typing import NoReturn
 from mcp.server.mcpserver.exceptions import ToolError
 
 from rwt_graph.ratelog import EpisodeLog
+from rwt_protocol.names import name_problem
 from rwt_protocol.runtime.access import AccessPolicy, Family, TopicUse, log_refused
 
-from .catalog import LISTINGS, TOOL_NAMES, WRITE_TOOLS
+from .catalog import APP_TOOLS, LISTINGS, TOOL_NAMES, WRITE_TOOLS
 
 __all__ = [
     "FAMILIES",
@@ -105,15 +106,21 @@ class Guard:
         Raises:
             ToolError: read-only mode and a write; the arguments over
                 ``MAX_TOOL_ARGUMENT_BYTES``; the tool called faster than
-                ``TOOL_CALLS_PER_S``. The text names the rule.
+                ``TOOL_CALLS_PER_S``; a topic, service or action name that is not a
+                ROS name (``names.name_problem``, the rule rosbridge's ops follow).
+                The text names the rule.
         """
         if self.read_only and tool in WRITE_TOOLS:
             self._refuse(tool, "--mcp-read-only", "refused, the MCP server is read-only")
         self._check_size(tool, arguments)
         self.check_rate(tool)
+        family_field = TOOL_NAMES.get(tool)
+        target = arguments.get(family_field[1]) if family_field else None
+        # An app checks each name it takes itself, naming the field (and "" is no camera).
+        named = family_field is not None and family_field[0] != "params" and tool not in APP_TOOLS
+        if named and isinstance(target, str) and (problem := name_problem(target)):
+            raise ToolError(f"{tool}: {problem}")  # as a rosbridge op's name is checked
         if tool in WRITE_TOOLS:
-            family_field = TOOL_NAMES.get(tool)
-            target = arguments.get(family_field[1]) if family_field else None
             self._writes.log(
                 logging.INFO,
                 f"{tool}:{target}",

@@ -8,6 +8,9 @@ The first page starts with the robot app (``app.APP_URI``, MCP Apps), whose
 message, summarised as
 ``echo``'s are (``render.message_text``): the one kept for a subscribed topic,
 else the first to arrive within ``READ_WAIT_S`` (a latched topic's at once).
+Both ask the topic for its latest message (``LATEST``, protocol 2.1.0's ``qos``,
+D63): the newest a transient-local topic keeps, at once, and never a policy the
+topic's offer cannot meet (D64).
 ``resources/subscribe`` (2025-era clients) and ``subscriptions/listen`` with
 ``resourceSubscriptions`` (2026-07-28 clients, D52) subscribe the session's
 connection to the topic, throttled by the server to one message per
@@ -51,6 +54,7 @@ from mcp.types import (
 )
 
 from rwt_protocol.errors import OpRefusedError, RwtError
+from rwt_protocol.qos import Durability, QosProfile, Reliability
 
 from .app import APP_MIME, APP_URI, AppSite, app_html, app_resource_meta
 from .render import message_text
@@ -65,6 +69,7 @@ if TYPE_CHECKING:
     from .robot import Subscription
 
 __all__ = [
+    "LATEST",
     "MAX_SUBSCRIBED",
     "READ_WAIT_S",
     "RESOURCES_PER_PAGE",
@@ -86,6 +91,14 @@ MAX_SUBSCRIBED = 16
 RESOURCES_PER_PAGE = 200
 #: Seconds ``resources/read`` waits for a message of a topic not subscribed.
 READ_WAIT_S = 2.0
+
+LATEST = QosProfile(
+    depth=1, reliability=Reliability.BEST_AVAILABLE, durability=Durability.BEST_AVAILABLE
+)
+"""What a topic resource asks of its topic (D63): its latest message. Depth 1: of what a
+transient-local topic keeps, the newest (with no ``qos`` a subscription takes all it
+keeps, oldest first); ``best_available``: what the offer gives, so no offer leaves it
+out (D64)."""
 
 
 def topic_of(uri: str) -> str:
@@ -315,7 +328,8 @@ class TopicResources:
                 arrived.set()
 
         try:
-            subscription = await (await self.link.connected()).subscribe(topic, None, take)
+            ros = await self.link.connected()
+            subscription = await ros.subscribe(topic, None, take, qos=LATEST)
             try:
                 with anyio.move_on_after(READ_WAIT_S):
                     await arrived.wait()
@@ -367,7 +381,7 @@ class TopicResources:
                 self._changed.set()
 
             watch.subscription = await ros.subscribe(
-                topic, None, take, throttle_ms=throttle_ms, queue_length=1
+                topic, None, take, throttle_ms=throttle_ms, queue_length=1, qos=LATEST
             )
         except OpRefusedError as exc:
             raise _refused(

@@ -14,23 +14,25 @@ protocol binds it, from one place:
   rosbridge checks them) with its one log line, for every name the tools touch,
   the agent's or their own (the TF republisher's topic, a service they call);
 - the per-client caps (``--max-subscriptions``, ``max_advertisements``,
-  ``max_pending_calls``) and the server's call timeout;
-- ``--idle-timeout``: the front end marks each request as input (``received``);
-  the session holds its subscriptions, advertisements, calls and goals
-  (``holds_anything``), so one that waits on the robot is never idle;
+  ``max_pending_calls``) and the call book (``SessionBase.calls``: each service
+  call's deadline, the server's ``--call-timeout``, on the session's timers;
+  every call and goal answered once, forgotten when the session closes);
+- ``--idle-timeout`` (the runtime's idle watch): the front end marks each request
+  as input (``begin_request``, ``end_request``), and a request in flight holds the
+  session (``holds_anything``): it ends without a request in flight (D40, D74);
 - release: what it held leaves the graph when it closes, whoever closes it.
 
 It takes no frames (MCP is answered over HTTP by the SDK): a frame is refused.
 Messages reach the tools as callbacks, in rosbridge's JSON form (bytes as base64,
 as a rosbridge client gets them), each subscription's at most once per
-``throttle_ms``; nothing is queued for a reader, so the slow-consumer rule has
-nothing to hold.
+``throttle_ms`` (by the messages' times, the latest held on the session's timers);
+nothing is queued for a reader, so the slow-consumer rule has nothing to hold. The
+session reads no clock: its time comes from its transport, as every session's.
 """
 
 from __future__ import annotations
 
 import logging
-import time
 import uuid
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -62,11 +64,13 @@ if TYPE_CHECKING:
     from anyio.abc import TaskGroup
 
     from rwt_protocol.levels import StatusLevel
-    from rwt_protocol.ports import GoalStatus, GraphPort, MessageEvent, Pending, PublishNote
+    from rwt_protocol.ports import GoalStatus, GraphPort, MessageEvent, PublishNote
     from rwt_protocol.qos import QosProfile
+    from rwt_protocol.runtime.callbook import BookedCall
     from rwt_protocol.runtime.memory import MemoryBudget
     from rwt_protocol.runtime.outbox import OutFrame
     from rwt_protocol.runtime.rules import ClientRules
+    from rwt_protocol.runtime.timers import Timer
 
 __all__ = ["DEFAULT_CALL_TIMEOUT_S", "McpSession", "jsonable"]
 
@@ -76,6 +80,8 @@ DEFAULT_CALL_TIMEOUT_S = 30.0
 """Seconds a service call waits when neither the tool nor the server (``call_timeout_s``) says."""
 _JSON_FORM = ("mcp", "json")  # ``MessageEvent.memo``'s key of the JSON form
 _ABORTED = 6  # action_msgs/GoalStatus: a goal the graph refused ends so (D4)
+_TIMED_OUT = object()  # a call's outcome: its deadline came first (``CallBook.expire_at``)
+_CLOSED = object()  # a call's outcome: the session closed first
 _WHAT = {
     Family.TOPICS: "topic",
     Family.SERVICES: "service",
@@ -94,9 +100,13 @@ def jsonable(values: object) -> Any:
 
 
 class _Watcher:
-    """One subscription's callback and its throttle: the latest message is kept (spec 3.3.4)."""
+    """One subscription's callback and its throttle: the latest message is kept (spec 3.3.4).
 
-    __slots__ = ("callback", "closed", "last", "pending", "session", "throttle_s")
+    The throttle runs on the messages' times and the session's timers (the runtime's),
+    so a held message goes when its time comes whoever drives the session.
+    """
+
+    __slots__ = ("callback", "closed", "last", "pending", "session", "throttle_s", "timer")
 
     def __init__(self, session: McpSession, callback: Callable[[Any], None], throttle_ms: int):
         self.session = session
@@ -104,6 +114,7 @@ class _Watcher:
         self.throttle_s = max(throttle_ms, 0) / 1000.0
         self.last = -1e18
         self.pending: MessageEvent | None = None  # the latest, held for the throttle
+        self.timer: Timer | None = None  # the held one's, on the session's timers
         self.closed = False
 
     def offer(self, event: MessageEvent) -> None:
@@ -112,24 +123,33 @@ class _Watcher:
         if not self.throttle_s:
             self._deliver(event)
             return
-        now = time.monotonic()
+        now = event.now
         if self.pending is None and now - self.last >= self.throttle_s:
             self.last = now
             self._deliver(event)
             return
         held = self.pending is not None
         self.pending = event  # the newest replaces the one held (queue_length 1)
-        if not held and not self.session.spawn(self._later):
-            self.pending = None  # nowhere to wait (not bound): given now
-            self.last = now
-            self._deliver(event)
+        if not held:
+            self.timer = self.session.call_at(self.last + self.throttle_s, self._later)
 
-    async def _later(self) -> None:
-        await anyio.sleep(max(self.last + self.throttle_s - time.monotonic(), 0.0))
+    def close(self) -> None:
+        """The subscription ended: nothing more is delivered, the held message goes."""
+        self.closed = True
+        self.pending = None
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
+
+    def _later(self, now: float) -> None:
+        self.timer = None
         event, self.pending = self.pending, None
-        if event is not None and not self.closed:
-            self.last = time.monotonic()
-            self._deliver(event)
+        if event is None or self.closed:
+            return
+        if self.session.message_end(event) <= now:
+            return  # past its lifespan while it waited (D63): never delivered
+        self.last = now
+        self._deliver(event)
 
     def _deliver(self, event: MessageEvent) -> None:
         try:  # made once per message for every MCP subscriber (read, never changed)
@@ -249,15 +269,35 @@ class McpSession(SessionBase, RosapiMixin):
         """Called when the session is asked to close (the server stopping), where no pump
         runs it to take the request (a 2026-07-28 request's session: its request ends)."""
         self._tg: TaskGroup | None = None
+        self._clock: Callable[[], float] | None = None  # the transport's (``bind``)
         self._fans: dict[str, _Fan] = {}
         self._advertised: dict[str, int] = {}  # topic -> publishers of the tools holding it
-        self._calls: set[Pending] = set()  # service calls and goals in flight
+        self._requests = 0  # the client's requests in flight (``begin_request``)
 
     # ---- the runtime's side ------------------------------------------------------------
 
-    def bind(self, tg: TaskGroup) -> None:
-        """Run what the tools leave running (goal watchers, throttles) in ``tg``."""
+    def bind(self, tg: TaskGroup, clock: Callable[[], float]) -> None:
+        """Run what the tools leave running (goal watchers) in ``tg``.
+
+        ``clock``: the transport's, monotonic seconds (the event loop's), read for a
+        call's deadline on the session's timers (``calls``); the session reads none.
+        """
         self._tg = tg
+        self._clock = clock
+
+    def begin_request(self, now: float) -> None:
+        """A request of the session's client came at ``now``: input, and held until it ends.
+
+        A request in flight (an open event stream included) keeps the session from
+        ``--idle-timeout`` (``holds_anything``), as each request is its input (D40).
+        """
+        self._requests += 1
+        self.received(now)
+
+    def end_request(self, now: float) -> None:
+        """The request begun last ended at ``now``: the idle time counts from here (D40)."""
+        self._requests -= 1
+        self.received(now)
 
     def status_frames(
         self, level: StatusLevel, text: str, op_id: str | int | None = None
@@ -280,19 +320,22 @@ class McpSession(SessionBase, RosapiMixin):
             self.on_close_requested()
 
     def holds_anything(self) -> bool:
-        """Subscriptions, advertisements, calls or goals in flight (the idle rule)."""
-        return bool(self._fans or self._advertised or self._calls)
+        """Whether a request is in flight (the idle rule: D40's, on the runtime's watch).
+
+        What the tools hold (subscriptions, publishers, goals left running) does not
+        hold the session: the client that left them may be gone, and its requests
+        are its only sign of life. A 2026-07-28 request's session is held by its
+        request and its tasks, which end it.
+        """
+        return self.request_scoped or self._requests > 0
 
     def release(self) -> None:
-        """Drop what the session holds in the graph; its waiting tools hear the close."""
+        """Drop what the session holds in the graph (its calls: the call book's, at close)."""
         for fan in self._fans.values():
             for watcher in fan.watchers:
-                watcher.closed = True
+                watcher.close()
         self._fans.clear()
         self._advertised.clear()
-        for pending in tuple(self._calls):
-            pending.forget()
-        self._calls.clear()
         super().release()
 
     # ---- the robot's side (``robot.Robot``) ----------------------------------------------
@@ -320,39 +363,64 @@ class McpSession(SessionBase, RosapiMixin):
         if param is not None:
             self._require(Family.PARAMS, param, "call_service")
         seconds = timeout_s or self.config.call_timeout_s or DEFAULT_CALL_TIMEOUT_S
-        answer: list[tuple[bool, object]] = []
-        answered = anyio.Event()
-
-        def reply(result: bool, values: object) -> None:
-            if not answer:
-                answer.append((result, values))
-                answered.set()
-
-        try:
-            self.check_cap(len(self._calls), self.config.max_pending_calls, "pending calls")
-            pending = self._graph.call_service(
-                self.client_id, service, args, reply, timeout_s=seconds, path="$.args"
-            )
-        except RwtError as exc:
-            raise ServiceCallError(f"{service} failed: {exc}", str(exc)) from None
-        self._calls.add(pending)
-        try:
-            with anyio.fail_after(seconds):
-                await answered.wait()
-        except TimeoutError:
+        outcome = await self._booked_call(service, args, seconds)
+        if outcome is _TIMED_OUT:
             raise CallTimeoutError(
                 f"no service_response for {service} within {seconds:g} s "
                 "(the server may not provide it or may never answer)"
-            ) from None
-        finally:
-            self._calls.discard(pending)
-            if not answer:
-                pending.forget()
-        result, values = answer[0]
+            )
+        if outcome is _CLOSED:
+            raise ConnectionClosedError("the MCP session was closed by the server")
+        assert isinstance(outcome, tuple)  # the callee's answer
+        result, values = outcome
         values = jsonable(values) if values is not None else {}
         if not result:
             raise ServiceCallError(f"{service} failed: {values}", values)
         return values
+
+    async def _booked_call(self, service: str, args: object, seconds: float) -> object:
+        """Call ``service`` in the session's call book and wait for its outcome.
+
+        Returns:
+            The callee's ``(result, values)``; ``_TIMED_OUT`` past ``seconds`` (the
+            book's deadline, on the session's timers); ``_CLOSED`` when the session
+            closed first.
+
+        Raises:
+            ServiceCallError: the graph refused the call, or ``--max-pending-calls`` did.
+        """
+        outcome: list[object] = []
+        answered = anyio.Event()
+
+        def settle(value: object) -> None:
+            outcome.append(value)
+            answered.set()
+
+        booked: BookedCall | None = None
+        try:
+            self.check_cap(self.calls.in_flight, self.config.max_pending_calls, "pending calls")
+            booked = self.calls.book(on_close=lambda: settle(_CLOSED))
+            call = booked
+
+            def reply(result: bool, values: object) -> None:
+                if call.settle():  # the first of the answer, the deadline and the close
+                    settle((result, values))
+
+            booked.pending = self._graph.call_service(
+                self.client_id, service, args, reply, timeout_s=seconds, path="$.args"
+            )
+        except RwtError as exc:
+            if booked is not None:
+                booked.settle()
+            raise ServiceCallError(f"{service} failed: {exc}", str(exc)) from None
+        clock = self._clock or (lambda: self.now)
+        self.calls.expire_at(booked, clock() + seconds, lambda _now: settle(_TIMED_OUT))
+        try:
+            await answered.wait()
+        finally:
+            if booked.settle() and booked.pending is not None:  # the tool was cancelled
+                booked.pending.forget()
+        return outcome[0]
 
     async def subscribe(
         self,
@@ -393,7 +461,7 @@ class McpSession(SessionBase, RosapiMixin):
 
     def drop_watcher(self, topic: str, watcher: _Watcher) -> None:
         """End one subscription; the graph's, with the topic's last."""
-        watcher.closed = True
+        watcher.close()
         fan = self._fans.get(topic)
         if fan is None or watcher not in fan.watchers:
             return
@@ -464,11 +532,11 @@ class McpSession(SessionBase, RosapiMixin):
         self.require_connection()
         self._require(Family.ACTIONS, action, "send_action_goal")
         run = _Goal(f"send_action_goal:{action}:{uuid.uuid4().hex[:16]}")  # as a client names it
-        handle: Pending | None = None
+        booked: BookedCall | None = None
 
         def done(status: GoalStatus, result: bool, values: object) -> None:
-            if handle is not None:
-                self._calls.discard(handle)
+            if booked is not None:
+                booked.settle()
             run.finish(GoalEnd(int(status), result, jsonable(values)))
 
         def feedback(values: dict[str, object]) -> None:
@@ -478,15 +546,18 @@ class McpSession(SessionBase, RosapiMixin):
                 logger.exception("event=bug task=mcp_feedback client=%s", self.client_id)
 
         try:
-            self.check_cap(len(self._calls), self.config.max_pending_calls, "pending calls")
-            handle = self._graph.send_action_goal(
+            self.check_cap(self.calls.in_flight, self.config.max_pending_calls, "pending calls")
+            booked = self.calls.book()  # held in the call book until it ends
+            booked.pending = self._graph.send_action_goal(
                 self.client_id, action, goal, done, feedback, path="$.goal", request_id=run.id
             )
         except RwtError as exc:
+            if booked is not None:
+                booked.settle()
             run.finish(GoalEnd(_ABORTED, False, str(exc)))
             return run
-        if not run.ended:  # still running: held until it ends
-            self._calls.add(handle)
+        if run.ended:  # it ended while it was sent
+            booked.settle()
         return run
 
     async def cancel_goal(self, action: str, goal_id: str) -> None:

@@ -86,7 +86,7 @@ CANCEL_SETTLE_S = 1.0
 
 
 class HostShare(Protocol):
-    """How many of a pool's slots each host may hold (``rwt_transports.shares.HostShares``).
+    """How many of a pool's slots each host may hold (as ``rwt_transports``' ``HostShares``).
 
     The rule of the server's connection slots, given to the store by the front end
     that knows its clients' hosts (D60); this package names it only.
@@ -180,7 +180,7 @@ class TaskStore:
         new_id: makes a new task's ``taskId`` (a uuid4's 32 hex digits by default;
             a worker of ``rwt serve --workers`` names itself in it).
         shares: the hosts' shares of the running slots (``rwt serve --mcp``: the
-            connection slots' rule, ``rwt_transports.shares.HostShares``); None:
+            connection slots' rule, ``rwt_transports.admission.shares.HostShares``); None:
             one client (``rwt mcp``), no share.
     """
 

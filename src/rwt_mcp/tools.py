@@ -408,6 +408,7 @@ class RobotTools:
         duration_s: float,
         ctx: Context,
         final_msg: Message | None = None,
+        qos: Message | None = None,
     ) -> Published:
         """Publish ``msg`` at ``rate_hz`` for ``duration_s`` seconds, then ``final_msg`` once.
 
@@ -421,7 +422,12 @@ class RobotTools:
             duration_s: seconds (at most MAX_PUBLISH_DURATION_S).
             ctx: the MCP request (a person's approval is asked through it, where needed).
             final_msg: sent once at the end, also when the call is cancelled.
+            qos: rosbridge's QoS object the topic is advertised with, as publish's:
+                {"reliability": "best_effort"} for a stream of commands where the
+                latest counts, {"durability": "transient_local", "depth": 1} keeps
+                the final message for later subscribers.
         """
+        profile = tool_qos(qos)
         if not 0 < rate_hz <= MAX_PUBLISH_RATE_HZ:
             raise ToolError(f"rate_hz must be in (0, {MAX_PUBLISH_RATE_HZ:g}]")
         if not 0 < duration_s <= MAX_PUBLISH_DURATION_S:
@@ -429,7 +435,7 @@ class RobotTools:
         count = 0
         notes: dict[str, None] = {}  # each told once, in order
         with _tool_errors():
-            publisher = await self.link.publisher(topic, type)
+            publisher = await self.link.publisher(topic, type, profile)
             start = anyio.current_time()
             deadline = start + duration_s
             try:
@@ -881,7 +887,7 @@ def release_server(server: MCPServer) -> None:
 
     Its handlers are its own bound methods and closures, so a server is a cycle of some
     400 objects that only the cyclic collector frees. A 2026-07-28 request builds one
-    (``rwt_transports.mcp_http``): under a flood they piled up into collections of 15,000-
+    (``rwt_transports.http.mcp``): under a flood they piled up into collections of 15,000-
     20,000 objects that stopped the event loop 8-10 ms, which every other client waited
     out (benchmarks B25). Emptied here, they go when their last reference does.
     """
@@ -899,7 +905,7 @@ def warm_up() -> None:
     """Build what a session's first server builds once (the tools' models, the SDK's parts).
 
     A front end calls it while it starts (``http.McpEndpoint``), before the server
-    freezes its start-up objects (``rwt_transports.gcfreeze``): otherwise the first
+    freezes its start-up objects (``rwt_transports.process.gcfreeze``): otherwise the first
     request builds them while every client waits on the event loop (tens of ms), and
     full collections walk them ever after. Nothing is connected.
     """

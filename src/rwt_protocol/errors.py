@@ -17,7 +17,7 @@ package is drawn here::
     │   │   ├── FoxgloveInputError        rwt_foxglove.protocol: what a Foxglove client sent
     │   │   │                             cannot be used (an error status)
     │   │   ├── AssetError                rwt_foxglove.assets: a package:// URI not served
-    │   │   ├── OfferError                rwt_transports.webrtc_offer: a WebRTC offer refused
+    │   │   ├── OfferError                rwt_transports.webrtc.offer: a WebRTC offer refused
     │   │   │                             before anything is built for it (HTTP 400, D38)
     │   │   ├── RouteError                rwt_http.routes: a request the HTTP API has no path or
     │   │   │                             method for, or a bad query (HTTP 404, 405, 400)

@@ -47,6 +47,7 @@ __all__ = [
     "LossSink",
     "MessageCodec",
     "MessageEvent",
+    "OfferWatch",
     "Pending",
     "PublishNote",
     "PublishNotes",
@@ -271,6 +272,30 @@ class LossSink(Protocol):
 
     def on_lost(self, count: int) -> None:
         """``count`` messages of the topic were lost before they reached this server."""
+
+
+class OfferWatch(Protocol):
+    """A publisher registration with a ``qos``, told of its topic's offer (D64, D65).
+
+    ROS 2 tells a publisher what concerns its offer (``offered deadline
+    missed``, ``offered incompatible QoS``); a rosbridge client that advertised
+    with a ``qos`` hears of them as warning statuses (``advertise``'s ``watch``).
+    """
+
+    def on_offer(self, offered: QosProfile | None, latest: Callable[[], float]) -> None:
+        """The topic's offer now: at registration, whenever it changes, None once gone.
+
+        ``latest`` gives the monotonic time of the topic's latest message (``-inf``
+        before any), for the offer's deadline (D65). None: the client no longer
+        publishes with a ``qos`` there. Must not raise.
+        """
+
+    def on_incompatible(self, offered: QosProfile, reasons: list[str]) -> None:
+        """A subscription asks what ``offered`` cannot meet (``reasons``, D64); must not raise.
+
+        Once per episode: from the first such subscription until none is left,
+        or the offer changes.
+        """
 
 
 class GoalStatus(IntEnum):
@@ -507,11 +532,14 @@ class GraphPort(ServicePort, Protocol):
         *,
         latch: bool = False,
         qos: QosProfile | None = None,
+        watch: OfferWatch | None = None,
     ) -> str:
         """Register ``client`` as a publisher of ``topic`` (latched when ``latch``).
 
         ``qos`` (protocol 2.1.0): the topic's first publisher registration with
-        one fixes its offered QoS (D62). Returns the topic's canonical type.
+        one fixes its offered QoS (D62). ``watch``: with ``qos``, told of the
+        offer as it goes (``OfferWatch``; the latest registration's replaces the
+        client's earlier one). Returns the topic's canonical type.
         """
 
     def offered_qos(self, topic: str) -> QosProfile | None:

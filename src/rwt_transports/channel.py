@@ -4,15 +4,14 @@ Every transport (WebSocket, TCP, UDP, stdio, in-memory) reduces a connection to
 a channel: receive a batch of frames, send a batch of frames, close. What a
 channel can do beyond that (pause its socket, probe for input, read its kernel
 send queue, write without awaiting) it reports once, as
-``flow.ChannelAbilities``; the pump calls those methods only when the channel
+``ChannelAbilities``; the pump calls those methods only when the channel
 said it can. A channel with none of them inherits ``PlainChannel``.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
-
-from .flow import ChannelAbilities
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -22,7 +21,30 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.inframes import FramerEvent
     from rwt_protocol.runtime.outbox import OutFrame
 
-__all__ = ["NO_ABILITIES", "Channel", "PlainChannel"]
+__all__ = ["NO_ABILITIES", "Channel", "ChannelAbilities", "PlainChannel"]
+
+
+@dataclass(frozen=True, slots=True)
+class ChannelAbilities:
+    """What a connection's channel can do beyond receive, send and close.
+
+    Attributes:
+        pause_reading: its socket can stop being read between ``receive`` calls
+            (``pause_reading``), so a held reader's peer is pushed back by TCP.
+        probe_input: it can tell whether input is already here without reading
+            it (``input_pending``): a starting connection's first input goes
+            first (admission/arrival.py).
+        unsent_bytes: it can read its kernel's send queue (``unsent_bytes``,
+            sendqueue.py): progress no completed send shows.
+        send_now: it can write without awaiting when ``can_send_now`` says so
+            (``send_now``): the ``deferred-send`` path.
+    """
+
+    pause_reading: bool = False
+    probe_input: bool = False
+    unsent_bytes: bool = False
+    send_now: bool = False
+
 
 NO_ABILITIES = ChannelAbilities()
 """The abilities of a channel that can only receive, send and close."""

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET
 from rwt_protocol.server.session import SessionConfig
 
+from .admission.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
 from .foxglove import FoxgloveOptions
-from .shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
-from .udp import UdpOptions
+from .udp.transport import UdpOptions
 from .websocket import WebSocketOptions
 
 if TYPE_CHECKING:
@@ -26,9 +26,9 @@ if TYPE_CHECKING:
     from rwt_graph.rosapi import VisibilityFor
     from rwt_graph.safety.rules import SafetyRules
 
-    from .mcp_options import McpOptions
-    from .placement import Placement
-    from .webrtc_signal import WebRtcOptions
+    from .http.mcp_options import McpOptions
+    from .webrtc.signalling import WebRtcOptions
+    from .workers.placement import Placement
 
 __all__ = ["MiB", "ServerConfig"]
 
@@ -65,11 +65,11 @@ class ServerConfig:
         max_connections: most simultaneous connections over all transports
             (``--max-connections``); a stream socket counts from ``accept()``,
             before its TLS/WebSocket handshake, and an MCP session holds
-            ``mcp_http.SESSION_SLOTS`` plus one per request beyond them (D40).
+            ``http.mcp.SESSION_SLOTS`` plus one per request beyond them (D40).
             None: derived from the soft RLIMIT_NOFILE when serving starts
-            (``fdlimit.default_max_connections``).
+            (``process.fdlimit.default_max_connections``).
         max_connections_per_host: connections one host (``host_prefix_v4``,
-            ``host_prefix_v6``) may hold once ``shares.SHARES_FROM`` of
+            ``host_prefix_v6``) may hold once ``admission.shares.SHARES_FROM`` of
             ``max_connections`` are taken (``--max-connections-per-host``); before
             that anyone gets one, so local use, where every client is 127.0.0.1, is
             not limited. WebSocket, TCP, UDP, WebRTC and MCP count; stdio and
@@ -120,7 +120,7 @@ class ServerConfig:
             one opens or closes (a worker's count for its parent,
             ``worker_counts``); None: not called.
         placement: move a rosbridge WebSocket connection to the worker that owns its
-            first topic (``rwt serve --workers N --placement topic``, placement.py,
+            first topic (``rwt serve --workers N --placement topic``, workers/placement.py,
             D57); None: every connection stays where the kernel put it.
         webrtc: answer WebRTC offers on the WebSocket port (``--webrtc``,
             docs/webrtc.md; needs ``rwt-rosbridge[webrtc]``); None: no WebRTC.

@@ -267,7 +267,7 @@ class DirectReader:
 
         True for input queued by the loop or readable in the kernel, and for the
         end of the connection. One ``poll`` system call; readers ask it of new
-        connections (admission.py).
+        connections (admission/arrival.py).
         """
         protocol = self._protocol
         if protocol.read_queue or protocol.is_at_eof or protocol.exception is not None:

@@ -10,8 +10,8 @@ the same way (``--max-connections``, the host shares, ``/connected_clients``), r
 by the same pump under the same per-client rules (``ClientRules``: the send
 buffer, the slow-consumer rule, ``--max-subscriptions``, ``--max-pending-calls``,
 ``--call-timeout``, ``--idle-timeout``, the hold budget) and flow control;
-``foxglove_frontend`` only says how its session is made, and ``FOXGLOVE`` is its
-entry in the registry (``frontends_registry``). With an authenticator its clients
+``foxglove_frontend`` only says how its session is made, and
+``frontends_registry.FOXGLOVE`` is its entry in the registry. With an authenticator its clients
 prove who they are with a URL token (``AuthMode.URL_TOKEN``,
 ``rwt_protocol.credentials``).
 """
@@ -24,8 +24,9 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from rwt_foxglove import SUBPROTOCOLS, AssetRoots, FoxgloveLimits, FoxgloveSession
+from rwt_protocol.errors import ConfigError
 
-from .frontends import AuthMode, FrontEnd, SocketFrontEnd
+from .frontends import AuthMode, FrontEnd
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -33,11 +34,11 @@ if TYPE_CHECKING:
 
     from rwt_graph.parameters.store import Parameters
     from rwt_graph.port import GraphFront
+    from rwt_protocol.runtime.request import SessionRequest
 
-    from .frontends import SessionRequest
-    from .server import GraphServer
+    from .host import FrontEndHost
 
-__all__ = ["FOXGLOVE", "FoxgloveOptions", "foxglove_frontend"]
+__all__ = ["FoxgloveOptions", "foxglove_for", "foxglove_frontend"]
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,7 @@ def foxglove_frontend(
             graph,
             request.client_id,
             session_id=session_id,
-            config=request.config,
+            config=request.rules,
             limits=options.limits,
             on_output=request.on_output,
             peer=request.peer,
@@ -106,14 +107,14 @@ def foxglove_frontend(
     return FrontEnd("foxglove", SUBPROTOCOLS, make_session, AuthMode.URL_TOKEN)
 
 
-def _made(server: GraphServer) -> FrontEnd:
-    return foxglove_frontend(server.graph.port, server.config.foxglove, server.graph.params)
+def foxglove_for(host: FrontEndHost, options: object) -> FrontEnd:
+    """The Foxglove front end of ``host``'s graph (``frontends_registry.FOXGLOVE``).
 
-
-FOXGLOVE = SocketFrontEnd(
-    "foxglove",
-    _made,
-    on_port=lambda config: config.foxglove.on_rosbridge_port,
-    own_port=lambda config: config.foxglove.port,
-)
-"""Foxglove's entry in the registry (``frontends_registry.SOCKET_FRONTENDS``)."""
+    Raises:
+        ConfigError: ``options`` is not a ``FoxgloveOptions``.
+    """
+    if not isinstance(options, FoxgloveOptions):
+        raise ConfigError(
+            f"Foxglove's options must be FoxgloveOptions, not {type(options).__name__}"
+        )
+    return foxglove_frontend(host.graph.port, options, host.graph.params)

@@ -1,16 +1,18 @@
 """The protocols a server speaks, each a front end on the one connection runtime.
 
 A front end names how a connection chooses it (a WebSocket subprotocol in the
-handshake, a WebRTC data channel's label), how its session is made, and how its
-clients prove who they are (``AuthMode``, ``rwt_protocol.credentials``); an HTTP
-front end (``HttpFrontEnd``) names the paths it answers on the WebSocket port and
-makes the endpoint that answers them. The registry (``frontends_registry``) lists
-them all; the listeners and the WebRTC peers consult it (``FrontEnds``, and the
-server's HTTP endpoints made from ``frontends_registry.HTTP_FRONTENDS``) and
-nothing else: admission (``--max-connections``, the host shares,
-``/connected_clients``), the per-client limits, flow control, the idle timeout and
-the slow-consumer rule are the server's and the pump's, the same for every front
-end (docs/architecture.md, "How to add a protocol").
+handshake, a WebRTC data channel's label), how its session is made from the
+runtime's ``SessionRequest``, how its clients prove who they are (``AuthMode``,
+``rwt_protocol.credentials``), and what a transport, which speaks no protocol,
+needs to know of its frames (``first_topic``, ``split_text``). The registry
+(``frontends_registry``) lists them all, with the HTTP front ends that answer
+paths on the WebSocket port; the listeners and the WebRTC peers consult it
+(``FrontEnds``, and the server's HTTP endpoints made from
+``frontends_registry.HTTP_FRONTENDS``) and nothing else: admission
+(``--max-connections``, the host shares, ``/connected_clients``), the per-client
+limits, flow control, the idle timeout and the slow-consumer rule are the
+server's and the pump's, the same for every front end (docs/architecture.md,
+"How to add a protocol").
 """
 
 from __future__ import annotations
@@ -23,56 +25,11 @@ from rwt_protocol.credentials import AuthMode
 if TYPE_CHECKING:
     from collections.abc import Callable, Iterable, Sequence
 
-    from rwt_protocol.framing.fragments import FragmentBudget
-    from rwt_protocol.ports import GraphPort
     from rwt_protocol.runtime.contract import ServerSession
-    from rwt_protocol.runtime.memory import MemoryBudget
-    from rwt_protocol.server.session import SessionConfig
+    from rwt_protocol.runtime.inframes import FramerEvent
+    from rwt_protocol.runtime.request import SessionRequest
 
-    from .server import GraphServer, ServerConfig
-    from .websocket import HttpEndpoint
-
-__all__ = [
-    "AuthMode",
-    "ChannelLabel",
-    "FrontEnd",
-    "FrontEnds",
-    "HttpFrontEnd",
-    "SessionRequest",
-    "SocketFrontEnd",
-]
-
-
-@dataclass(frozen=True, slots=True)
-class SessionRequest:
-    """What a front end gets to make the session of an admitted connection.
-
-    Attributes:
-        graph: the served graph's port.
-        client_id: the connection's id in the graph (``ws:127.0.0.1:5000#3``).
-        transport: ``ws``, ``tcp``, ``tls``, ``udp``, ``stdio`` or ``memory``.
-        peer: the peer's address.
-        config: the per-client settings for this transport: rosbridge's
-            ``SessionConfig``, whose ``ClientRules`` part every front end reads.
-        on_output: the pump's wake-up.
-        on_closed: the server's bookkeeping when the session closes.
-        fragment_budget: the server-wide budget of incomplete messages.
-        auth_nonce: the connection's auth challenge when the transport sent it.
-        authenticated: the transport admitted the client already (a URL token).
-        memory: the server's memory budget every session is charged to (D44).
-    """
-
-    graph: GraphPort
-    client_id: str
-    transport: str
-    peer: str
-    config: SessionConfig
-    on_output: Callable[[], None]
-    on_closed: Callable[[str], None]
-    fragment_budget: FragmentBudget | None = None
-    auth_nonce: str | None = None
-    authenticated: bool = False
-    memory: MemoryBudget | None = None
+__all__ = ["AuthMode", "ChannelLabel", "FrontEnd", "FrontEnds"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,6 +47,13 @@ class FrontEnd:
             reliable, ordered channel so labelled opens its session.
         lossy_labels: labels of its session's lossy channel (unordered, never
             retransmitted, D36), which opens the session's lossy lane.
+        first_topic: the topic a connection's first message names, by which
+            ``--placement topic`` moves it to the worker owning that topic (D57);
+            None: its connections stay where they land.
+        split_text: a text frame too large for a channel's message (a WebRTC data
+            channel's 64 KiB) cut into parts its peer reassembles (rosbridge's
+            ``fragment`` ops, D19): ``split_text(frame, max_bytes)``; None: such a
+            frame goes whole where the peer takes it, else it is dropped and logged.
     """
 
     name: str
@@ -98,6 +62,8 @@ class FrontEnd:
     auth: AuthMode = AuthMode.OP
     labels: tuple[str, ...] = ()
     lossy_labels: tuple[str, ...] = ()
+    first_topic: Callable[[FramerEvent], str | None] | None = None
+    split_text: Callable[[bytes, int], Sequence[bytes]] | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,63 +78,6 @@ class ChannelLabel:
 
     frontend: FrontEnd
     lossy: bool
-
-
-@dataclass(frozen=True, slots=True)
-class HttpFrontEnd:
-    """One front end of HTTP requests on the WebSocket port (docs/architecture.md).
-
-    Attributes:
-        name: its name in logs and in ``ServerConfig.http_options``.
-        paths: the paths (or path prefixes ending in ``/``) its endpoint claims.
-        make_endpoint: its endpoint for a server and its options: an
-            ``HttpEndpoint`` that claims and answers the requests; it admits
-            each through the server (``GraphServer.admit``, ``open_session``)
-            and checks its clients' proofs with ``GraphServer.entry``.
-        options: its options when the configuration names none; None: off.
-        auth: how its clients prove who they are.
-        transport: the transport its sessions run on, when it is one of its own
-            (``webrtc``), for ``GET /version``'s list.
-        configured: where ``ServerConfig`` holds its options when it has a field
-            of its own (``ServerConfig.webrtc``); ``ServerConfig.http_options``
-            by its name comes first.
-    """
-
-    name: str
-    paths: tuple[str, ...]
-    make_endpoint: Callable[[GraphServer, object], HttpEndpoint]
-    options: object = None
-    auth: AuthMode = AuthMode.BEARER
-    transport: str | None = None
-    configured: Callable[[ServerConfig], object] | None = None
-
-    def options_in(self, config: ServerConfig) -> object:
-        """Its options under ``config``: ``http_options[name]``, its field, or the default.
-
-        None: it is off.
-        """
-        if self.name in config.http_options:
-            return config.http_options[self.name]
-        if self.configured is not None:
-            return self.configured(config)
-        return self.options
-
-
-@dataclass(frozen=True, slots=True)
-class SocketFrontEnd:
-    """A registered protocol of the WebSocket listeners besides the default (rosbridge).
-
-    Attributes:
-        name: its name (``foxglove``), also its own listener's in ``GraphServer.urls``.
-        make: its front end for one server (made once, when the server is).
-        on_port: whether ``ServerConfig`` puts it on the WebSocket port.
-        own_port: the port of a listener that speaks only it; None: none.
-    """
-
-    name: str
-    make: Callable[[GraphServer], FrontEnd]
-    on_port: Callable[[ServerConfig], bool]
-    own_port: Callable[[ServerConfig], int | None]
 
 
 class FrontEnds:

@@ -2,7 +2,7 @@
 
 ``rwt_graph.link`` defines two gates a link goes through (``InflowGate``,
 ``OutflowGate``); the server installs these on the graph it serves. Both carry
-out the decisions of the server's ``flow.FlowControl``, as its connections'
+out the decisions of the server's ``rwt_protocol.runtime.flow.FlowControl``, as its connections'
 pumps do (docs/limits.md, "Backpressure").
 """
 
@@ -17,8 +17,7 @@ from .pump import flush_deferred
 
 if TYPE_CHECKING:
     from rwt_graph.link import Backlog
-
-    from .flow import FlowControl, HoldAccount
+    from rwt_protocol.runtime.flow import FlowControl, HoldAccount
 
 __all__ = ["InboundBatch", "InboundHold", "OutboundHold"]
 
@@ -51,7 +50,7 @@ class InboundBatch:
     deliveries since its last call congested, for the link to hold back the
     topic they were of (``rwt_graph.topic_holds``) until those outboxes drain
     to their low watermark, within the hold budget of the remote publisher
-    whose sample congested them (``flow.FlowControl.link_account``, D61): a
+    whose sample congested them (``rwt_protocol.runtime.flow.FlowControl.link_account``, D61): a
     burst from another process reaches a subscriber that keeps up on average
     whole, a slow one is left to the drop and close rules (D24) once that
     publisher's budget is spent, as with a local publisher, and the link's

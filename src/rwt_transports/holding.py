@@ -2,7 +2,7 @@
 
 A reader whose batch of frames congested an outbox waits until that outbox is
 back under its low watermark (docs/limits.md, "Backpressure"). Whether to wait,
-how long and who is slow is ``flow.FlowControl``'s to decide (sans-IO); this
+how long and who is slow is ``rwt_protocol.runtime.flow.FlowControl``'s to decide (sans-IO); this
 module does the waiting on the event loop: an outlet (``Held``: a connection's
 pump, or a link's queue, ``LinkHold``) tells what waits in it and wakes the
 readers waiting for it at each take of its consumer.
@@ -14,12 +14,11 @@ from typing import TYPE_CHECKING
 
 import anyio
 
-from .flow import INPUT_STALL_S, Outlet, Progress, send_queue_shrank
+from rwt_protocol.runtime.flow import INPUT_STALL_S, Outlet, Progress, send_queue_shrank
 
 if TYPE_CHECKING:
     from rwt_graph.link import Backlog
-
-    from .flow import FlowControl, HoldAccount
+    from rwt_protocol.runtime.flow import FlowControl, HoldAccount
 
 __all__ = ["Held", "LinkHold", "wait_for"]
 

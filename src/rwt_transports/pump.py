@@ -35,7 +35,7 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   (``ChannelAbilities.pause_reading``) until that outbox is back under the low
   watermark (a quarter), within its hold budget, while its peer reads. Who
   congested a batch, how long to wait and who is slow is decided by the
-  server's ``flow.FlowControl`` (sans-IO, one per event loop); the pump carries
+  server's ``rwt_protocol.runtime.flow.FlowControl`` (sans-IO, one per event loop); the pump carries
   it out (``holding.wait_for``). A reader waits for its own outbox only for the
   replies and statuses in it (they are never dropped), so a peer sending
   garbage faster than it reads the answers is slowed, not buffered without
@@ -45,7 +45,7 @@ reads instead of being dropped, and one connection cannot monopolise the loop:
   ``READ_SLICE_BYTES`` bytes, then yields to the loop for a turn, so a flood
   of tiny frames on one connection does not hold the others up;
 - jobs: a frame that left the session a job (a ``png`` op to inflate,
-  ``Session.take_job``) stops the slice; the reader waits until the job's
+  ``Jobs.take``) stops the slice; the reader waits until the job's
   ``ready_at`` (the connection's own budget), runs it in a worker thread (at
   most ``INFLATE_THREADS`` at once over the server) and hands the result back
   before it handles the next frame, so ops keep their order and only the
@@ -58,7 +58,7 @@ import asyncio
 import contextlib
 import logging
 import weakref
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 import anyio
 import anyio.lowlevel
@@ -67,11 +67,12 @@ import anyio.to_thread
 from rwt_graph.ratelog import EpisodeLog
 from rwt_protocol.levels import StatusLevel
 from rwt_protocol.runtime.commands import CloseCode, CloseConnection
+from rwt_protocol.runtime.contract import LossySession
+from rwt_protocol.runtime.flow import FlowControl, HoldAccount, Progress, ReadingWindow
 from rwt_protocol.runtime.inframes import FramerEvent, FramingError
 from rwt_protocol.shortcuts import enabled
 
-from .admission import Admission, Ticket, current_ticket
-from .flow import FlowControl, HoldAccount, Progress, ReadingWindow
+from .admission.arrival import Admission, Ticket, current_ticket
 from .gather import GATHER_BYTES, Gatherer
 from .holding import Held, wait_for
 
@@ -81,12 +82,11 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
 
     from .channel import Channel
-    from .frontends import FrontEnd
 
 __all__ = [
     "CLOSE_WAIT_S",
     "ConnectionPump",
-    "SessionHost",
+    "drive_timers",
     "flush_deferred",
     "run_connection",
 ]
@@ -132,35 +132,6 @@ def _limiter(limiters: _Limiters, threads: int) -> anyio.CapacityLimiter:
     return limiter
 
 
-class SessionHost(Protocol):
-    """What a transport needs from the server: sessions on its one graph (D22)."""
-
-    flow: FlowControl[Held]
-    """The server's flow control, shared by its connections' pumps and its links' gates."""
-
-    admission: Admission
-    """The server's starting connections, whose first input goes first (admission.py)."""
-
-    def open_session(
-        self,
-        transport: str,
-        peer: str,
-        on_output: Callable[[], None],
-        *,
-        frontend: FrontEnd | None = None,
-        auth_nonce: str | None = None,
-        authenticated: bool = False,
-    ) -> ServerSession | None:
-        """Admit a new connection and make its session.
-
-        ``frontend``: the protocol it speaks (``frontends.FrontEnd``; None:
-        rosbridge); ``auth_nonce``: its auth challenge, when the transport sent
-        it (``Session``); ``authenticated``: the transport already admitted it
-        (a URL token). None when the server is full (``--max-connections``) or
-        stopping.
-        """
-
-
 async def run_connection(pump: ConnectionPump, session: ServerSession, detail: str = "") -> None:
     """Run ``pump`` for ``session``, logging the connection's start and end (structured)."""
     channel = pump.channel
@@ -168,7 +139,7 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
         "event=connect client=%s transport=%s protocol=%s peer=%s%s",
         session.client_id,
         channel.transport,
-        getattr(session, "protocol", "rosbridge"),
+        session.protocol,
         session.peer,
         f" {detail}" if detail else "",
     )
@@ -181,12 +152,35 @@ async def run_connection(pump: ConnectionPump, session: ServerSession, detail: s
             "frames_sent=%d duration_s=%.1f",
             session.client_id,
             pump.close_reason,
-            session.topic_messages,
-            session.dropped_frames,
-            session.expired_messages,
-            session.taken_frames,
+            session.stats.topic_messages,
+            session.stats.dropped_frames,
+            session.stats.expired_messages,
+            session.stats.taken_frames,
             anyio.current_time() - started,
         )
+
+
+async def drive_timers(session: ServerSession) -> None:
+    """Run ``session``'s timers until it closes: for a session no pump runs.
+
+    A 2026-07-28 MCP request's session has no connection to pump, yet its timers
+    come due (a call's deadline, a throttled message, the idle watch): this waits
+    for ``get_timer``'s time and calls ``handle_timer``, woken by ``on_timer`` when
+    an earlier one is set, as the pump's timer task does. ``start`` is the caller's.
+    """
+    wake = anyio.Event()
+
+    def woken() -> None:
+        wake.set()  # the one being waited for (set again per wait)
+
+    session.on_timer = woken
+    while not session.closing:
+        wake = anyio.Event()
+        deadline = session.get_timer()
+        delay = None if deadline is None else max(0.0, deadline - anyio.current_time())
+        with anyio.move_on_after(delay):
+            await wake.wait()
+        session.handle_timer(anyio.current_time())
 
 
 _BROKEN = (
@@ -262,14 +256,14 @@ class ConnectionPump(Held):
 
     Args:
         channel: the connection.
-        flow: the server's flow control (``SessionHost.flow``); None: one of its
+        flow: the server's flow control (``host.SessionHost.flow``); None: one of its
             own (a pump that no server runs).
-        admission: the server's starting connections (``SessionHost.admission``);
+        admission: the server's starting connections (``host.SessionHost.admission``);
             None: its own (none but this one's).
         hello: the connection's first write, made once its reader listens (a
             WebSocket upgrade response): the peer may send only after it, so its
             first input reaches a reader that waits, and the event loop reports
-            it in the order it arrived among every connection's (admission.py).
+            it in the order it arrived among every connection's (admission/arrival.py).
 
     Use ``wake`` as the session's ``on_output`` callback, then ``await run(session)``.
     """
@@ -297,6 +291,7 @@ class ConnectionPump(Held):
         self._reader_done = anyio.Event()
         self._writer_closed = anyio.Event()
         self._session: ServerSession | None = None
+        self._lossy: LossySession | None = None  # the session, if it has a lossy lane (D36)
         self._jobs_wake = anyio.Event()
         self._timer_deadline: float | None = None
         # The ``deferred-send`` shortcut: off, the pump never writes from the publish path.
@@ -326,7 +321,7 @@ class ConnectionPump(Held):
             # asked meanwhile goes when the gathering ends: ``_send_now`` leaves it to
             # the writer)
             gatherer.more = True
-            if session.queued_bytes >= GATHER_BYTES:
+            if session.stats.queued_bytes >= GATHER_BYTES:
                 self.flush_deferred()  # enough for a write of its own
             return
         if session.close_request is not None:
@@ -343,14 +338,14 @@ class ConnectionPump(Held):
         if session.closing:  # shutting down, closed: the timer task ends the connection
             self._timer_wake.set()
         if flow.in_batch:
-            fill = session.fill_bytes
+            fill = session.stats.fill_bytes
             if fill > self.watch_water and session.wake_above_bytes < self.high_water:
                 self._fell_behind(session)
             if flow.congests(self, fill):
                 flow.note_congested(self, anyio.current_time())
 
     def _fell_behind(self, session: ServerSession) -> None:
-        """The outbox passed its ``watch_water``: its reading window starts (flow.py).
+        """The outbox passed its ``watch_water``: its reading window starts (runtime's flow.py).
 
         The session wakes this pump again only past the high watermark, until
         the peer is back at its ``watch_water`` (``_took``).
@@ -363,7 +358,7 @@ class ConnectionPump(Held):
         """The transport took frames: the peer makes progress; wake readers waiting on it.
 
         Having taken everything queued, the peer caught up (a slow one stays
-        slow until its cool-down ends: ``flow.FlowControl.found_slow``); back at
+        slow until its cool-down ends: ``FlowControl.found_slow``); back at
         its ``watch_water``, it is no longer behind: its reading window ends, and
         the session wakes this pump at the next output past the mark. ``sent``:
         the transport wrote them, so they are no longer held (D44).
@@ -375,12 +370,12 @@ class ConnectionPump(Held):
         if sent:
             session.frames_sent()
         watch = self.watch_water
-        if session.fill_bytes <= watch and (
+        if session.stats.fill_bytes <= watch and (
             self.window is not None or session.wake_above_bytes != watch
         ):
             self.window = None
             session.wake_above_bytes = watch
-        self.note_take(session.queued_bytes == 0)
+        self.note_take(session.stats.queued_bytes == 0)
 
     def _defer(self) -> None:
         """Leave the frames for ``flush_deferred`` instead of waking the writer.
@@ -404,7 +399,7 @@ class ConnectionPump(Held):
         self._deferred = True
 
     def flush_deferred(self) -> None:
-        """Write what was deferred now, or wake the writer (``flow.PendingOutput``)."""
+        """Write what was deferred now, or wake the writer (``FlowControl``'s ``PendingOutput``)."""
         self._deferred = False
         try:
             sent = self._writer_idle and self._send_now()
@@ -434,10 +429,10 @@ class ConnectionPump(Held):
             or not channel.can_send_now()
         ):
             return False
-        queued = session.queued_bytes
+        queued = session.stats.queued_bytes
         frames = session.frames_to_send(BATCH_BYTES, self._time())
         if frames:
-            self._sent += queued - session.queued_bytes
+            self._sent += queued - session.stats.queued_bytes
             try:
                 channel.send_now(frames)
             except Exception:  # a publish must never fail for another peer's socket
@@ -448,7 +443,7 @@ class ConnectionPump(Held):
             if not written:
                 self._unwritten = True
                 return False
-        return session.queued_bytes == 0
+        return session.stats.queued_bytes == 0
 
     def _wake_timers(self) -> None:
         """Wake the timer task only when it has something new to look at.
@@ -473,13 +468,14 @@ class ConnectionPump(Held):
         on (docs/limits.md, containment). Never raises for it.
         """
         self._session = session
+        self._lossy = session if isinstance(session, LossySession) else None
         # its marks, budget and cool-down (a reconnection: its host's)
         self._account = self.flow.open_connection(
             self, session.peer, session.hold_budget_s, session.water_marks
         )
         session.wake_above_bytes = self.watch_water  # to see the peer fall behind
-        session.run_jobs()  # ``_run_jobs`` inflates png ops off the loop
-        session.on_job = self._jobs_wake.set
+        session.jobs.transport_runs = True  # ``_run_jobs`` inflates png ops off the loop
+        session.jobs.on_background = self._jobs_wake.set
         session.on_timer = self._wake_timers
         with contextlib.suppress(RuntimeError):  # the loop's gathering (gather.py)
             self._gatherer = Gatherer.for_loop(asyncio.get_running_loop())
@@ -530,7 +526,7 @@ class ConnectionPump(Held):
 
     async def _reader(self, session: ServerSession) -> None:
         # A starting connection's first input goes before what the others got
-        # after it (admission.py): their readers ask this probe.
+        # after it (admission/arrival.py): their readers ask this probe.
         ticket = current_ticket()
         channel = self.channel
         if ticket is not None:
@@ -569,7 +565,7 @@ class ConnectionPump(Held):
                     ticket = None
                 self._wake_timers()  # handlers may have scheduled timers
                 await self._apply_backpressure()
-                if session.has_jobs:
+                if session.jobs.waiting:
                     await self._run_jobs(session, clock)
                 if start >= count:
                     break
@@ -579,7 +575,7 @@ class ConnectionPump(Held):
             # A full slice yields when the next batch is in hand (``_handle`` stops
             # at once), never here: a reader resuming from a yield with nothing read
             # would read input that came after another connection's and handle it
-            # first (arrival order, admission.py); one holding its input resumes
+            # first (arrival order, admission/arrival.py); one holding its input resumes
             # before the input the loop finds meanwhile.
             del events
 
@@ -591,6 +587,7 @@ class ConnectionPump(Held):
         flow.begin()
         frames, size = self._slice_frames, self._slice_bytes
         index, count = start, len(events)
+        jobs, lossy = session.jobs, self._lossy
         try:
             while index < count and frames < READ_SLICE_FRAMES and size < READ_SLICE_BYTES:
                 event = events[index]
@@ -602,11 +599,11 @@ class ConnectionPump(Held):
                         session.request_close(CloseCode.MESSAGE_TOO_BIG, event.message)
                 else:
                     size += len(event.data)
-                    if event.lossy:  # WebRTC's lossy channel (D36)
-                        session.receive_lossy_frame(event.data, now, binary=event.binary)
+                    if event.lossy and lossy is not None:  # WebRTC's lossy channel (D36)
+                        lossy.receive_lossy_frame(event.data, now, binary=event.binary)
                     else:
                         session.receive_frame(event.data, now, binary=event.binary)
-                    if session.has_jobs:  # run it before the next frame (order)
+                    if jobs.waiting:  # run it before the next frame (order)
                         break
         finally:
             flow.end()
@@ -618,7 +615,7 @@ class ConnectionPump(Held):
 
         The socket is not read meanwhile: the sender waits for its own budget.
         """
-        while (job := session.take_job()) is not None:
+        while (job := session.jobs.take()) is not None:
             self._slice_frames = self._slice_bytes = 0  # this waits: the others run
             if self._pausable:
                 self.channel.pause_reading()
@@ -629,7 +626,7 @@ class ConnectionPump(Held):
                     await self._job_wait.wait()
                 self._job_wait = None
             if session.closing:  # nothing more is handled; read on, for the peer's close
-                while session.take_job() is not None:
+                while session.jobs.take() is not None:
                     pass
                 return
             result: object
@@ -650,10 +647,10 @@ class ConnectionPump(Held):
         outcome goes back to the session (``finish_job``), whose output is written.
         """
         while not session.closing:
-            job = session.take_background_job()
+            job = session.jobs.take_background()
             if job is None:
                 self._jobs_wake = anyio.Event()
-                session.on_job = self._jobs_wake.set
+                session.jobs.on_background = self._jobs_wake.set
                 await self._jobs_wake.wait()
                 continue
             result: object
@@ -672,7 +669,7 @@ class ConnectionPump(Held):
         The socket stays read: a turn reads at most one more chunk, and a socket
         paused here would be read again after the others that got input
         meanwhile, so its frames would lose their place (arrival order,
-        admission.py).
+        admission/arrival.py).
         """
         self._slice_frames = self._slice_bytes = 0
         await anyio.lowlevel.checkpoint()
@@ -700,7 +697,7 @@ class ConnectionPump(Held):
         session = self._session
         if session is None or session.closing:
             return False
-        return (session.queued_reply_bytes if own else session.fill_bytes) > mark
+        return (session.stats.queued_reply_bytes if own else session.stats.fill_bytes) > mark
 
     def unsent_bytes(self) -> int | None:
         """The socket's send queue, where the channel can read it (``holding.wait_for``)."""
@@ -709,7 +706,7 @@ class ConnectionPump(Held):
     def backlog_bytes(self) -> int:
         """What the peer has yet to read: its outbox, what is made for it, the send queue."""
         session = self._session
-        queued = 0 if session is None else session.queued_bytes + session.pending_bytes
+        queued = 0 if session is None else session.stats.queued_bytes + session.stats.pending_bytes
         return queued + (self.unsent_bytes() or 0)
 
     def progress(self) -> Progress:
@@ -721,7 +718,7 @@ class ConnectionPump(Held):
         ``BATCH_BYTES`` or so) counts as taken.
         """
         session = self._session
-        queued = 0 if session is None else session.queued_bytes
+        queued = 0 if session is None else session.stats.queued_bytes
         unsent = self.unsent_bytes()
         held = unsent or 0
         return Progress(self._sent - held, queued + held, unsent)
@@ -735,10 +732,10 @@ class ConnectionPump(Held):
             while True:
                 if self._writer_wake.is_set():  # a fresh event only after a wake-up
                     self._writer_wake = anyio.Event()
-                queued = session.queued_bytes
+                queued = session.stats.queued_bytes
                 frames = session.frames_to_send(BATCH_BYTES, clock())
                 if frames:
-                    self._sent += queued - session.queued_bytes
+                    self._sent += queued - session.stats.queued_bytes
                     await self.channel.send(frames)
                     self._unwritten = False  # (its send waited for what came before too)
                     self._took()

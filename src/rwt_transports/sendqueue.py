@@ -5,7 +5,7 @@ the kernel wakes a blocked writer only once about half of the socket's send
 buffer is free again. Linux grows that buffer up to 4 MiB by default
 (``net.ipv4.tcp_wmem``), which is some 13 camera frames of 300 KB: a viewer
 drawing 3 of them a second frees half of it in over 2 s, and looks to input
-backpressure as if it had stalled (``flow.INPUT_STALL_S``), though it reads
+backpressure as if it had stalled (``rwt_protocol.runtime.flow.INPUT_STALL_S``), though it reads
 all the while. The send queue's length (``SIOCOUTQ``: bytes not yet
 acknowledged by the peer) shrinks with every read, so a wait that saw no send
 complete asks it before calling the peer stalled (``holding.wait_for``).

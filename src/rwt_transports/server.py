@@ -35,7 +35,7 @@ import ssl
 import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Iterable
 from contextlib import AsyncExitStack, asynccontextmanager
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import anyio
@@ -63,29 +63,31 @@ from rwt_protocol.credentials import EntryAuth
 from rwt_protocol.errors import ConfigError, RwtError
 from rwt_protocol.framing.fragments import FragmentBudget
 from rwt_protocol.ops.base import Compression
+from rwt_protocol.runtime.flow import FlowControl, HostCoolDowns
 from rwt_protocol.runtime.memory import MemoryBudget
-from rwt_protocol.server.session import CloseCode, Session
+from rwt_protocol.runtime.request import SessionRequest
+from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import switched_off
 
-from .admission import Admission, Ticket
+from .admission.arrival import Admission, Ticket
+from .admission.pending import PendingRequests, PendingSocket, current_socket, serve_socket
+from .admission.shares import HostPrefixes, HostShares, address_of
 from .config import ServerConfig
 from .deadman import run_deadman
-from .fdlimit import REFUSING_SOCKETS, default_max_connections
-from .flow import FlowControl, HostCoolDowns
-from .frontends import FrontEnd, FrontEnds, SessionRequest
-from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS, rosbridge_frontend
+from .frontends import FrontEnd, FrontEnds
+from .frontends_registry import HTTP_FRONTENDS, SOCKET_FRONTENDS
 from .gates import InboundBatch, OutboundHold
+from .host import Admitted, Features, HostSettings, ServedFrontEnd
 from .listen import ListenError
 from .memory import MemoryConnection, memory_pair
-from .pending import PendingRequests, PendingSocket, current_socket, serve_socket
+from .process.fdlimit import REFUSING_SOCKETS, default_max_connections
 from .pump import ConnectionPump, run_connection
 from .rosauth import rosauth_authenticator, url_authenticator
-from .shares import HostPrefixes, HostShares, address_of
+from .rosbridge import rosbridge_frontend
 from .stdio import StdioChannel
 from .tcp import serve_tcp_connection
-from .udp import serve_udp
-from .udp_auth import UdpAuth
-from .version_http import Features, ServedFrontEnd
+from .udp.auth import UdpAuth
+from .udp.transport import serve_udp
 from .websocket import serve_websocket_connection
 
 if TYPE_CHECKING:
@@ -97,14 +99,14 @@ if TYPE_CHECKING:
     from rwt_protocol.auth import Authenticator
     from rwt_protocol.runtime.access import AccessPolicy
     from rwt_protocol.runtime.contract import ServerSession
+    from rwt_protocol.runtime.rules import ClientRules
 
     from .holding import Held
-    from .placement import Placement
-    from .websocket import HttpEndpoint
+    from .http.endpoint import HttpEndpoint
+    from .workers.placement import Placement
 
 __all__ = [
     "SERVER_NODE",
-    "Admitted",
     "GraphServer",
     "RosbridgeServer",
     "ServerConfig",
@@ -153,7 +155,7 @@ class GraphServer:
 
     Raises:
         ConfigError: ``config.host_prefix_v4`` or ``host_prefix_v6`` is outside
-            its address's width (``shares.HostPrefixes``); an HTTP front end's
+            its address's width (``admission.shares.HostPrefixes``); an HTTP front end's
             options are not of its type.
         RulesError: ``config.safety`` does not fit the graph's types (a ``ConfigError``).
         ImportError: ``config.webrtc`` is set but aiortc is not (``rwt-rosbridge[webrtc]``);
@@ -183,7 +185,7 @@ class GraphServer:
             self.config.session.hold_budget_s, HostCoolDowns(self.host_prefixes)
         )
         self.graph.port.inflow = InboundBatch(self.flow)
-        # one order of first input for its connections, on its loop (admission.py)
+        # one order of first input for its connections, on its loop (admission/arrival.py)
         self.admission = Admission()
         # one size limit for every transport and for reassembly: the session's is set here
         session_config = replace(self.config.session, max_message_size=self.config.max_message_size)
@@ -275,7 +277,7 @@ class GraphServer:
         on_port: list[FrontEnd] = []
         own: dict[str, tuple[int, FrontEnds]] = {}
         for entry in SOCKET_FRONTENDS:
-            frontend = entry.make(self)
+            frontend = entry.make(self, entry.options(self.config))
             if entry.on_port(self.config):
                 on_port.append(frontend)
             port = entry.own_port(self.config)
@@ -591,7 +593,7 @@ class GraphServer:
                 logger.info("event=accept_resumed")
                 delay = 0.0
             self._handshaking += 1
-            # Plain TCP: the client may have sent already; handle that first (admission.py).
+            # Plain TCP: the client may have sent already; handle that first (admission/arrival.py).
             # TLS waits for the peer's handshake first, WebSocket for its request.
             ticket = self.admission.hold() if handler == self._handle_tcp and tls is None else None
             connections.start_soon(self._serve_socket, sock, handler, tls, ticket)
@@ -630,7 +632,7 @@ class GraphServer:
 
         ``open_session`` lifts the handshake deadline; a bug ends this socket only.
         ``ticket``: held from accept until the reader handled the input already
-        there (admission.py).
+        there (admission/arrival.py).
         """
         pending: PendingSocket | None = None
         if ticket is not None:
@@ -694,11 +696,11 @@ class GraphServer:
 
         None: the WebSocket port's, read at each connection (``add_frontend``).
         ``resumed``: a connection another worker handed here with the bytes it read
-        (placement.py); it is not moved again.
+        (workers/placement.py); it is not moved again.
         """
         endpoints = list(http)
 
-        # the WebSocket port's rosbridge connections may move by topic (placement.py)
+        # the WebSocket port's rosbridge connections may move by topic (workers/placement.py)
         placement = self.config.placement if frontends is None and resumed is None else None
 
         async def handle(stream: ByteStream) -> None:
@@ -719,7 +721,7 @@ class GraphServer:
         return handle
 
     def _placed_runner(self, placement: Placement) -> Runner:
-        """Serve the connections other workers hand here by their first topic (placement.py).
+        """Serve the connections other workers hand by their first topic here (workers/placement).
 
         Each is one more socket in handshake, as an accepted one is, and runs as the
         WebSocket port's connections do, reading first what the other worker read.
@@ -742,7 +744,7 @@ class GraphServer:
         peer = _peer(stream)
         transport = "tls" if self.config.certfile is not None else "tcp"
         # TLS: from the end of its handshake the client may send; that goes first
-        # (admission.py). Plain TCP holds its ticket from accept.
+        # (admission/arrival.py). Plain TCP holds its ticket from accept.
         ticket = self.admission.hold() if transport == "tls" else None
         if ticket is not None:
             ticket.serve()
@@ -827,7 +829,7 @@ class GraphServer:
                 the ticket's.
             share_from_first: its host's share of such sessions of ``transport``
                 applies from the first, not only past
-                ``shares.SHARES_FROM`` of the slots: a session that holds no
+                ``admission.shares.SHARES_FROM`` of the slots: a session that holds no
                 socket of its own (MCP's, D40), which a ``--max-connections`` derived
                 from the descriptors would bound late, or that costs the loop
                 for as long as it lasts (the HTTP API's event streams, D59).
@@ -848,16 +850,14 @@ class GraphServer:
         else:
             client_id, host, address = ticket.client_id, ticket.host, ticket.address
             transport, peer = ticket.transport, ticket.peer
-        stream = transport in ("ws", "tcp", "tls", "webrtc")
         request = SessionRequest(
             self.graph.port,
             client_id,
             transport,
             peer,
-            self._stream_session_config if stream else self.session_config,
+            self._session_config_for(transport),
             on_output,
             self._session_closed,
-            self.fragment_budget,
             auth_nonce,
             authenticated,
             self.memory,
@@ -1035,16 +1035,41 @@ class GraphServer:
             share,
         )
 
+    @property
+    def settings(self) -> HostSettings:
+        """What its front ends read of its settings (``host.FrontEndHost``)."""
+        return _settings_of(self.config, self.session_config)
+
+    def _session_config_for(self, transport: str) -> SessionConfig:
+        """The per-client settings of a connection on ``transport``.
+
+        Stream connections (``ws``, ``tcp``, ``tls``, ``webrtc``) and MCP sessions
+        close when idle (``--idle-timeout``; an MCP session's input is its requests,
+        D40); the others (stdio, in-process, UDP with its own rule, an HTTP request)
+        never do.
+        """
+        stream = transport in ("ws", "tcp", "tls", "webrtc", "mcp")
+        return self._stream_session_config if stream else self.session_config
+
+    @property
+    def rules(self) -> ClientRules:
+        """The per-client rules of every protocol (``ServerConfig.session``'s ``ClientRules``)."""
+        return self.session_config
+
     def _rosbridge_session(self, request: SessionRequest) -> Session:
-        """A rosbridge session (``session_class``) for an admitted connection."""
+        """A rosbridge session (``session_class``) for an admitted connection.
+
+        Its section is rosbridge's ``SessionConfig``, the server's, whose
+        ``ClientRules`` part is the request's rules (``_session_config_for``).
+        """
         return self.session_class(
             request.graph,
             request.client_id,
-            config=request.config,
+            config=self._session_config_for(request.transport),
             on_output=request.on_output,
             peer=request.peer,
             on_closed=request.on_closed,
-            fragment_budget=request.fragment_budget,
+            fragment_budget=self.fragment_budget,
             auth_nonce=request.auth_nonce,
             authenticated=request.authenticated,
             memory=request.memory,
@@ -1110,27 +1135,6 @@ class GraphServer:
 
 RosbridgeServer = GraphServer
 """``GraphServer`` under its first name: the public API and the docs that use it stay valid."""
-
-
-@dataclass(slots=True)
-class Admitted:
-    """An admitted connection without a session yet (``GraphServer.admit``): its ticket.
-
-    Attributes:
-        client_id: the id its session will have (``webrtc:127.0.0.1:5000#3``).
-        transport: the transport it was admitted on.
-        peer: the peer's address.
-        host: the host whose share it counts against; None for a local transport.
-        address: the peer's address without its port.
-        redeemed: a session took it, or it was released.
-    """
-
-    client_id: str
-    transport: str
-    peer: str
-    host: str | None
-    address: str
-    redeemed: bool = False
 
 
 def spawner_for(tg: TaskGroup) -> Spawner:
@@ -1205,6 +1209,19 @@ async def _contained(what: str, work: Awaitable[None]) -> None:
         logger.error("event=bug task=%r", what, exc_info=group.exceptions[0])
 
 
+def _settings_of(config: ServerConfig, session: SessionConfig) -> HostSettings:
+    """What a front end reads of ``config`` (``host.HostSettings``)."""
+    return HostSettings(
+        config.host,
+        config.port,
+        config.certfile is not None,
+        config.websocket.allowed_origins,
+        config.max_message_size,
+        config.idle_timeout_s,
+        session.compat,
+    )
+
+
 def _tls_context(certfile: Path | None, keyfile: Path | None) -> ssl.SSLContext | None:
     """A server TLS context from PEM files (rosbridge's ``certfile``/``keyfile``), or None.
 
@@ -1250,7 +1267,7 @@ async def _accept(listener: socket.socket) -> socket.socket:
 
     Not anyio's ``accept``, which sets the stream up before it returns: the
     server would learn of the connection only a few loop turns later, after
-    the older connections' input that arrived meanwhile (admission.py).
+    the older connections' input that arrived meanwhile (admission/arrival.py).
 
     Raises:
         OSError: ``accept()`` failed (EMFILE, ENFILE, ENOBUFS, ENOMEM, ...).

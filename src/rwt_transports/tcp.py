@@ -18,10 +18,10 @@ from rwt_protocol.codecs.json import encode_op
 from rwt_protocol.framing.streams import JsonStreamFramer
 from rwt_protocol.ops import Status
 
-from . import admission
+from .admission import arrival as admission
+from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter
-from .flow import ChannelAbilities
-from .pump import ConnectionPump, SessionHost, run_connection
+from .pump import ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
 from .writes import coalesce
 
@@ -35,6 +35,8 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.contract import ServerSession
     from rwt_protocol.runtime.inframes import FramerEvent
     from rwt_protocol.runtime.outbox import OutFrame
+
+    from .host import SessionHost
 
 __all__ = ["StreamChannel", "encode_stream_frames", "serve_tcp_connection"]
 
@@ -115,9 +117,9 @@ class StreamChannel:
         self._framer.release()
 
     def input_pending(self) -> bool | None:
-        """Whether input is here already (a new connection's first read, admission.py).
+        """Whether input is here already (a new connection's first read, admission/arrival.py).
 
-        None when none is seen but anyio may hold some (``admission.stream_probe``).
+        None when none is seen but anyio may hold some (``admission.arrival.stream_probe``).
         """
         return self._probe()
 

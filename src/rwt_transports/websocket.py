@@ -33,7 +33,7 @@ import os
 import struct
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final, Protocol
+from typing import TYPE_CHECKING, Final
 from urllib.parse import urlsplit
 
 import anyio
@@ -52,21 +52,21 @@ from rwt_protocol.runtime.commands import CloseCode
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.shortcuts import enabled
 
-from . import admission
+from .admission import arrival as admission
+from .admission.pending import RETRY_AFTER_S, current_socket
+from .channel import ChannelAbilities
 from .direct import DirectReader, DirectWriter, asyncio_parts
-from .flow import ChannelAbilities
-from .http_endpoint import MAX_HEAD_BYTES, drain_refused
-from .pending import RETRY_AFTER_S, current_socket
-from .placement import RECORD_LIMIT_BYTES, placed_topic
-from .pump import CLOSE_WAIT_S, ConnectionPump, SessionHost, run_connection
+from .http.endpoint import MAX_HEAD_BYTES, drain_refused
+from .pump import CLOSE_WAIT_S, ConnectionPump, run_connection
 from .sendqueue import stream_unsent_bytes
+from .workers.placement import RECORD_LIMIT_BYTES
 from .writes import WRITE_BATCH
 from .wsread import FrameReader
 
 if TYPE_CHECKING:
-    from collections.abc import Sequence
+    from collections.abc import Callable, Sequence
 
-    from anyio.abc import ByteStream, TaskGroup
+    from anyio.abc import ByteStream
     from websockets.datastructures import Headers
     from websockets.extensions.base import ServerExtensionFactory
 
@@ -76,9 +76,11 @@ if TYPE_CHECKING:
     from rwt_protocol.runtime.outbox import OutFrame
 
     from .frontends import FrontEnd, FrontEnds
-    from .placement import Placement
+    from .host import SessionHost
+    from .http.endpoint import HttpEndpoint
+    from .workers.placement import Placement
 
-__all__ = ["HttpEndpoint", "WebSocketOptions", "serve_websocket_connection"]
+__all__ = ["WebSocketOptions", "serve_websocket_connection"]
 
 logger = logging.getLogger("rwt.websocket")
 
@@ -184,7 +186,9 @@ class WebSocketChannel:
         self.early: list[Frame] = []
         """Whole frames the client sent with its upgrade request, parsed with it: read first."""
         self.placement: Placement | None = None
-        """Where this connection's first topic may move it (placement.py); None: it stays."""
+        self.first_topic: Callable[[FramerEvent], str | None] | None = None
+        """The front end's reading of a first message's topic (``FrontEnd.first_topic``)."""
+        """Where its first topic may move this connection (workers/placement.py); None: stays."""
         self.record: bytearray | None = None
         """Every byte read from the socket until the first message (``placement``'s)."""
 
@@ -226,7 +230,7 @@ class WebSocketChannel:
         return messages
 
     async def _placed(self, messages: Sequence[FramerEvent]) -> bool:
-        """Whether the connection went to the worker owning its first topic (placement.py).
+        """Whether the connection went to the worker owning its first topic (workers/placement.py).
 
         Decided once, on the first message, before the session sees it. The socket's
         reading stops, and what the loop read ahead goes with the record; a hand-off
@@ -236,9 +240,9 @@ class WebSocketChannel:
         """
         record, self.record = self.record, None
         placement, parts = self.placement, asyncio_parts(self.stream)
-        if placement is None or record is None or parts is None:
+        if placement is None or self.first_topic is None or record is None or parts is None:
             return False
-        topic = placed_topic(messages[0])
+        topic = self.first_topic(messages[0])
         if topic is None or self.protocol.state is not State.OPEN or self._failed is not None:
             return False
         owner = placement.owner(topic)
@@ -287,11 +291,11 @@ class WebSocketChannel:
         raise anyio.EndOfStream
 
     def input_pending(self) -> bool | None:
-        """Whether input is here already (a new connection's first read, admission.py).
+        """Whether input is here already (a new connection's first read, admission/arrival.py).
 
         Bytes websockets' parser or the frame reader hold count (a client that sent
         frames with its upgrade request). None when none is seen but anyio may hold
-        some (``admission.stream_probe``).
+        some (``admission.arrival.stream_probe``).
         """
         frames = self.frames
         if self.early or _parser_held(self.protocol) or (frames is not None and frames.held):
@@ -569,27 +573,6 @@ def _make_protocol(
     )
 
 
-class HttpEndpoint(Protocol):
-    """An HTTP front end on the WebSocket port (``/version``, WebRTC, MCP, the HTTP API).
-
-    It claims requests by their first bytes and answers them; the server makes it
-    from its registry entry (``frontends.HttpFrontEnd``) and binds it while serving.
-    """
-
-    def claims(self, head: bytes) -> bool | None:
-        """Whether the request starting with ``head`` is this endpoint's; None: too short."""
-
-    async def serve(self, stream: ByteStream, head: bytes, peer: str) -> None:
-        """Answer the request on ``stream`` whose first bytes are ``head``."""
-
-    def bind(self, tg: TaskGroup | None) -> None:
-        """Run what outlives a request in ``tg`` (the server's connections).
-
-        None: the server is stopping (or stopped): take nothing new, and free
-        what has not started.
-        """
-
-
 async def _read_head(
     stream: ByteStream, endpoints: Sequence[HttpEndpoint]
 ) -> tuple[bytes, HttpEndpoint | None] | None:
@@ -632,7 +615,7 @@ async def _handshake(
     """Read the upgrade request: it, whether it ended with the bytes read, its frames, the bytes.
 
     ``head``: the request's first bytes, read already (for a connection another
-    worker handed here, every byte it read: placement.py). Only when the bytes read
+    worker handed here, every byte it read: workers/placement.py). Only when the bytes read
     end with the request, or with whole messages after it, does the next byte start
     a frame that websockets has not begun to parse, so that ``FrameReader`` may read
     from there. websockets parses frames sent with the request at once, with it:
@@ -678,7 +661,7 @@ async def _head_refused(stream: ByteStream, protocol: ServerProtocol, received: 
     """Refuse a request whose ``received`` bytes (its head, not yet whole) are too many.
 
     431 past ``MAX_HEAD_BYTES``; 429 or 503 when the socket's pending record cannot
-    keep them (``pending.PendingSocket.hold``, D58). Whether it was refused (answered).
+    keep them (``admission.pending.PendingSocket.hold``, D58). Whether it was refused (answered).
     """
     refused: tuple[int, str, tuple[tuple[str, str], ...]] | None = None
     if received > MAX_HEAD_BYTES:
@@ -792,10 +775,11 @@ async def serve_websocket_connection(
         http: the HTTP endpoints on this port, each answering the paths it claims
             (``/version``, ``/webrtc``, ``/mcp``; docs/server.md); the rest are the
             WebSocket's (or the console's).
-        placement: where a rosbridge connection's first topic may move it
-            (``--placement topic``, placement.py); None: it stays.
+        placement: where a connection's first topic may move it (a front end that
+            reads one, ``FrontEnd.first_topic``: rosbridge's)
+            (``--placement topic``, workers/placement.py); None: it stays.
         resumed: the bytes another worker read from this connection before handing it
-            here (placement.py): read first, and the upgrade response is not sent
+            here (workers/placement.py): read first, and the upgrade response is not sent
             again; a connection refused now (full) is closed with 1013.
 
     Never raises for what the peer does; the stream is closed on return.
@@ -824,7 +808,9 @@ async def serve_websocket_connection(
         )
         _respond(protocol, request, refusal, resumed=resumed is not None)
         if _placeable(placement, frontend, session, protocol):
+            assert frontend is not None  # placeable: its front end reads first topics
             channel.placement, channel.record = placement, received
+            channel.first_topic = frontend.first_topic
         # deflate's frames are websockets' to read; ``ws-frame-reader`` off: all of them are
         if at_frame_start and not protocol.extensions and enabled("ws-frame-reader"):
             channel.frames = FrameReader(max_message_size)
@@ -846,16 +832,17 @@ def _placeable(
     session: ServerSession | None,
     protocol: ServerProtocol,
 ) -> bool:
-    """Whether the connection may move by its first topic (placement.py).
+    """Whether the connection may move by its first topic (workers/placement.py).
 
-    A rosbridge session only (Foxglove's sends on open), and without permessage-deflate
-    (its compression context is this process's).
+    A front end that reads one (``FrontEnd.first_topic``: rosbridge's; Foxglove's
+    sends on open and reads none), and without permessage-deflate (its compression
+    context is this process's).
     """
     return (
         placement is not None
         and session is not None
         and frontend is not None
-        and frontend.name == "rosbridge"
+        and frontend.first_topic is not None
         and not protocol.extensions
     )
 
@@ -899,7 +886,7 @@ def _respond(
 ) -> None:
     """Queue the upgrade's response: accepted, or refused with an HTTP status and reason.
 
-    ``resumed``: another worker handed the connection here (placement.py) and sent the
+    ``resumed``: another worker handed the connection here (workers/placement.py) and sent the
     response; it is made again, for websockets' state, and not sent. A refusal here
     (the server is full) can no longer be an HTTP status: the connection closes with
     1013 (try again later) and the reason.

@@ -2,7 +2,7 @@
 
 Both ways, a burst of large samples (camera images) faster than the other end
 builds a queue, and a queue of fresh 1 MB buffers is paid in page faults: every
-buffer past the heap kept (``rwt_transports.allocator``) is memory the kernel
+buffer past the heap kept (``rwt_transports.process.allocator``) is memory the kernel
 maps and zeroes anew. The link therefore queues what exists already and makes
 each copy just before it is used, freed right after (the Z3 link benchmark,
 benchmarks/README.md, "Scaling out", measured with 1 MB images).

@@ -33,7 +33,7 @@ from rwt_mcp.cli import stdio_site
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tools import RobotTools
 from rwt_protocol.names import MAX_NAME_LENGTH
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from rwt_transports.server import rosauth_authenticator
 from rwt_video import VideoTokens, install_token_service
 from tests.agents.test_mcp_revisions import AUTO, connect, robot

@@ -27,9 +27,9 @@ pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test
 import httpx2
 from mcp import Client
 
-from rwt_transports import mcp_http
-from rwt_transports.host_rates import HostPace, host_of
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http import mcp as mcp_http
+from rwt_transports.http.host_rates import HostPace, host_of
+from rwt_transports.http.mcp_options import McpOptions
 
 pytestmark = pytest.mark.anyio
 

@@ -22,7 +22,7 @@ pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test
 
 from rwt_mcp.link import RobotLink
 from rwt_mcp.tools import build_server, release_server
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from tests.agents.test_rwt_mcp import robot_graph
 
 

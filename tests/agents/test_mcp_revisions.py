@@ -33,8 +33,8 @@ from pydantic import ConfigDict
 
 from rwt_mcp.link import Goal
 from rwt_mcp.tasks import MAX_TASKS, TASK_TTL_S, TASKS_EXTENSION, TaskStore
-from rwt_transports.mcp_options import McpOptions
-from rwt_transports.shares import HostShares
+from rwt_transports.admission.shares import HostShares
+from rwt_transports.http.mcp_options import McpOptions
 from tests.support.cli import ENV, RWT
 
 pytestmark = pytest.mark.anyio
@@ -218,6 +218,74 @@ async def test_a_2025_client_still_opens_a_session_and_subscribes(
             result = await client.call_tool("send_action_goal", arguments)  # no task: a result
             assert result.structured_content is not None
             assert result.structured_content["state"] == "succeeded"
+
+
+@pytest.mark.parametrize("mode", ["legacy", AUTO], ids=["2025-era", "2026-07-28"])
+async def test_a_call_nobody_answers_ends_on_the_sessions_timers(
+    served: tuple[str, Graph, list[str]], mode: str
+) -> None:
+    """A service call's deadline is the session's call book's, on the runtime's timers.
+
+    A 2025-era session's pump runs them; a 2026-07-28 request's session, which has no
+    pump, has them driven for it (docs/architecture.md, "How to add").
+    """
+    url, graph, _ = served
+
+    async def never(request: Message) -> Message:
+        await anyio.sleep_forever()
+        return {}
+
+    graph.create_service("/hang", "std_srvs/srv/Trigger", never)
+    with anyio.fail_after(60):
+        async with connect(url, "http", mode) as client:
+            late = await client.call_tool("call_service", {"service": "/hang", "timeout_s": 0.5})
+            assert late.is_error
+            text = late.content[0].text  # type: ignore[union-attr]
+            assert "no service_response for /hang within 0.5 s" in text
+            echoed = await client.call_tool("echo", {"topic": "/battery"})  # it goes on
+            assert json.loads(echoed.content[1].text) == {"data": "87%"}  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("mode", ["legacy", AUTO], ids=["2025-era", "2026-07-28"])
+async def test_a_topics_latest_message_comes_after_its_throttle(
+    served: tuple[str, Graph, list[str]], mode: str
+) -> None:
+    """A resource's updates are throttled on the session's timers: the latest one comes.
+
+    Two messages within ``resources.UPDATE_INTERVAL_S`` of the first: the newest is
+    held and sent when the interval ends, whichever revision holds the subscription.
+    """
+    url, graph, _ = served
+    counter = graph.create_publisher("/counter", "std_msgs/msg/Int32")
+    updates = anyio.Event()
+
+    async def on_message(message: Any) -> None:
+        if getattr(message, "method", None) == "notifications/resources/updated":
+            updates.set()
+
+    async def latest(client: Client) -> int:
+        read = await client.read_resource("ros://topics/counter")
+        return int(json.loads(read.contents[0].text)["data"])  # type: ignore[union-attr]
+
+    with anyio.fail_after(60):
+        async with connect(url, "http", mode, on_message) as client:
+            if mode == "legacy":
+                await client.subscribe_resource("ros://topics/counter")
+                counter.publish({"data": 1})
+                await updates.wait()
+                updates = anyio.Event()
+                counter.publish({"data": 2})
+                counter.publish({"data": 3})
+                await updates.wait()  # the held one, when the interval ended
+                assert await latest(client) == 3
+                return
+            async with client.listen(resource_subscriptions=["ros://topics/counter"]) as events:
+                counter.publish({"data": 1})
+                await events.__anext__()
+                counter.publish({"data": 2})
+                counter.publish({"data": 3})
+                await events.__anext__()  # the held one, when the interval ended
+                assert await latest(client) == 3
 
 
 async def test_a_task_is_polled_and_canceled_from_a_new_connection(

@@ -25,7 +25,7 @@ from rwt_protocol.server.session import SessionConfig
 
 pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
 
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from tests.agents.test_mcp_safety import WRITES, _text
 from tests.agents.test_rwt_mcp import Message, robot_graph, rwt_serve_mcp
 
@@ -111,4 +111,25 @@ async def test_a_cancel_after_its_goal_ended_reports_the_end() -> None:
                     "cancel_action_goal", action="/fibonacci", goal_id="no-such-goal"
                 )
                 assert unknown.is_error and "no-such-goal" in _text(unknown)
+            tg.cancel_scope.cancel()
+
+
+async def test_a_name_rosbridge_refuses_is_refused_to_an_agent_too() -> None:
+    received: list[Message] = []
+    config = ServerConfig(host="127.0.0.1", port=0, mcp=McpOptions())
+    server = RosbridgeServer(robot_graph(received), config)
+    with anyio.fail_after(60):
+        async with anyio.create_task_group() as tg:
+            url = await tg.start(server.serve)
+            async with rwt_serve_mcp(url) as agent:
+                bad = {**WRITES["publish"], "topic": "/robot/cmd/0"}  # a token from a digit
+                refused = await agent.result("publish", **bad)
+                assert refused.is_error
+                assert "invalid name '/robot/cmd/0'" in _text(refused)
+                async with Ros(url) as ros:  # what a rosbridge client learns of the graph
+                    topics = await ros.call_service("/rosapi/topics", {})
+                assert isinstance(topics, dict)
+                assert "/robot/cmd/0" not in topics["topics"]
+                assert not (await agent.result("publish", **WRITES["publish"])).is_error
+                assert received == [{"data": "go"}]
             tg.cancel_scope.cancel()

@@ -30,8 +30,8 @@ from mcp.types import CallToolResult, Request, TextContent
 
 from rwt_mcp.guard import TOOL_CALLS_PER_S
 from rwt_mcp.tasks import MAX_TASKS
-from rwt_transports.mcp_options import McpOptions
-from rwt_transports.shares import SHARES_FROM
+from rwt_transports.admission.shares import SHARES_FROM
+from rwt_transports.http.mcp_options import McpOptions
 from tests.agents.test_mcp_revisions import (
     AUTO,
     FIB,

@@ -35,7 +35,7 @@ from mcp.client.streamable_http import streamable_http_client
 
 from rwt_client import Action, Ros
 from rwt_client.ros import ServerGoal
-from rwt_transports.mcp_siblings import PEER_PREAMBLE, McpSiblings
+from rwt_transports.http.mcp_siblings import PEER_PREAMBLE, McpSiblings
 from tests.agents.test_mcp_revisions import (
     FIB,
     HOLD_ORDER,

@@ -39,7 +39,7 @@ from mcp.types import CallToolResult, ImageContent, TextContent
 from PIL import Image
 
 from rwt_mcp.tools import MAX_ECHO_COUNT
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 
 pytestmark = pytest.mark.anyio
 

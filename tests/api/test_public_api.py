@@ -45,6 +45,8 @@ PLUMBING = {
     "GraphServer.add_frontend",
     "GraphServer.features",
     "GraphServer.open_session",
+    "GraphServer.rules",  # with settings: what front ends read (rwt_transports.host.FrontEndHost)
+    "GraphServer.settings",
     "TFRepublisher.run_goal",
     "TFRepublisher.subscription",
     "ZenohLink.declare_publisher",

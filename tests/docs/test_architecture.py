@@ -2,8 +2,9 @@
 
 docs/architecture.md draws every package and names modules, attributes and test
 files; each must exist. The README's layout table has a row for every package.
-``rwt_graph`` and ``rwt_foxglove`` map their modules in their docstrings; each
-module and subpackage must be on the map.
+``rwt_graph``, ``rwt_foxglove``, the connection runtime and ``rwt_transports`` with
+each of its rooms map their modules in their docstrings; each module and subpackage
+must be on the map.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from tests.support.packages import REPO, SRC, packages
 
 MAP_PAGES = [REPO / "docs" / "architecture.md", REPO / "CONTRIBUTING.md"]
 
-# ``rwt_graph.mirror``, ``rwt_transports.flow.FlowControl``, ``rwt_protocol/ops/``
+# ``rwt_graph.mirror``, ``rwt_protocol.runtime.flow.FlowControl``, ``rwt_protocol/ops/``
 DOTTED = re.compile(r"`(rwt_[a-z0-9_]+(?:\.[A-Za-z_][A-Za-z0-9_]*)*)`")
 SLASHED = re.compile(r"`((?:rwt_[a-z0-9_]+|tests)(?:/[A-Za-z0-9_.]+)+/?)`")
 
@@ -66,10 +67,25 @@ def test_every_module_and_file_the_map_names_exists(page: Path) -> None:
     assert missing == []
 
 
-@pytest.mark.parametrize("package", ["rwt_graph", "rwt_foxglove"])
+MAPPED = [
+    "rwt_graph",
+    "rwt_foxglove",
+    "rwt_protocol.runtime",
+    "rwt_transports",
+    *(
+        f"rwt_transports.{p.name}"
+        for p in sorted((SRC / "rwt_transports").iterdir())
+        if (p / "__init__.py").is_file()
+    ),
+]
+"""Packages whose docstring maps every module and subpackage: the runtime and the server's
+rooms (each room of ``rwt_transports`` is found, never typed in)."""
+
+
+@pytest.mark.parametrize("package", MAPPED)
 def test_a_package_docstring_maps_every_module(package: str) -> None:
     doc = importlib.import_module(package).__doc__ or ""
-    root = SRC / package
+    root = SRC / package.replace(".", "/")
     parts = sorted(
         p.stem if p.is_file() else p.name
         for p in root.iterdir()

@@ -44,7 +44,7 @@ class Client:
         """Run what the transport would (background jobs, due timers) and take every frame."""
         session = self.session
         while True:
-            while self.run_jobs and (job := session.take_background_job()) is not None:
+            while self.run_jobs and (job := session.jobs.take_background()) is not None:
                 try:
                     result: object = job.run()
                 except Exception as exc:

@@ -152,12 +152,12 @@ def test_requests_wait_in_order_and_one_file_is_read_and_queued_at_a_time(tree: 
                 "requestId": n,
             }
         )
-    first = session.take_background_job()
-    assert first is not None and session.take_background_job() is None  # one file at a time
+    first = session.jobs.take_background()
+    assert first is not None and session.jobs.take_background() is None  # one file at a time
     session.finish_job(first, MESH, 0.0)  # read (as the runtime's worker thread would)
-    assert session.take_background_job() is None  # its response is not taken yet
+    assert session.jobs.take_background() is None  # its response is not taken yet
     assert responses(client) == [(1, 0, "", MESH)]
-    second = session.take_background_job()  # taken: the next one is read
+    second = session.jobs.take_background()  # taken: the next one is read
     assert second is not None
     try:
         second.run()
@@ -166,7 +166,7 @@ def test_requests_wait_in_order_and_one_file_is_read_and_queued_at_a_time(tree: 
     assert responses(client) == [
         (2, 1, "package://robot_description/meshes/2.stl: no such file", b"")
     ]
-    assert session.take_background_job() is None
+    assert session.jobs.take_background() is None
 
 
 def test_a_closed_session_drops_its_requests_and_the_file_read_for_it(tree: Path) -> None:
@@ -178,11 +178,11 @@ def test_a_closed_session_drops_its_requests_and_the_file_read_for_it(tree: Path
     client.send(
         {"op": "fetchAsset", "uri": "package://robot_description/meshes/base.stl", "requestId": 2}
     )
-    job = session.take_background_job()
+    job = session.jobs.take_background()
     assert job is not None
     session.close()
     session.finish_job(job, job.run(), 0.0)  # the read ends after the close: nothing is kept
-    assert session.frames_to_send() == [] and session.take_background_job() is None
+    assert session.frames_to_send() == [] and session.jobs.take_background() is None
 
 
 def test_too_many_waiting_requests_are_answered_at_once(tree: Path) -> None:
@@ -209,4 +209,4 @@ def test_a_malformed_fetch_asset_gets_an_error_status(
     client.send(op)
     (status,) = client.take_ops("status")
     assert status["level"] == 2 and message in str(status["message"])
-    assert client.session.take_background_job() is None
+    assert client.session.jobs.take_background() is None

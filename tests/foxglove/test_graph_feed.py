@@ -81,12 +81,12 @@ def test_connection_graph_churn_without_reading_holds_one_update_and_walks_once(
         conngraph, "view_of", lambda *args: views.append(len(args)) or view_of(*args)
     )
     session.receive_frame(b'{"op": "subscribeConnectionGraph"}', 0.0, binary=False)
-    held = session.queued_bytes
+    held = session.stats.queued_bytes
     for _ in range(4_000):  # never reads: each subscribe used to queue the whole graph
         session.receive_frame(b'{"op": "unsubscribeConnectionGraph"}', 0.0, binary=False)
         session.receive_frame(b'{"op": "subscribeConnectionGraph"}', 0.0, binary=False)
     session.handle_timer(0.0)
-    assert session.queued_bytes == held
+    assert session.stats.queued_bytes == held
     assert views == [1]  # the whole graph once: no walk per subscription
     frames = session.frames_to_send()
     (update,) = _ops(frames, "connectionGraphUpdate")

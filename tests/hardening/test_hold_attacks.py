@@ -56,8 +56,8 @@ from benchmarks.trickling_readers import (
     trickle,
 )
 
+from rwt_protocol.runtime.flow import INPUT_STALL_S
 from rwt_protocol.server.session import SessionConfig
-from rwt_transports.flow import INPUT_STALL_S
 from rwt_transports.server import ServerConfig
 from tests.hardening.peers import TcpPeer, settle
 from tests.support.clients import Harness, running_server

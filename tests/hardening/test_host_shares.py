@@ -25,7 +25,7 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import InvalidStatus
 
 from rwt_transports.server import ServerConfig
-from rwt_transports.udp import UdpOptions
+from rwt_transports.udp.transport import UdpOptions
 from tests.support.cli import invoke_rwt, port, rwt_serve
 from tests.support.clients import Harness, running_server, validate_udp
 

@@ -7,8 +7,8 @@ sockets, each a 10 MiB body short of its last byte, and took the server's RSS fr
 MB to 3.1 GB, outside ``--memory-budget``, the host shares and the connection slots
 (1.5 GB stayed after they closed); and four sockets sending chunked bodies of one
 byte a chunk held the event loop through each read's thousands of chunks (a rosbridge
-client's round trip went from 1 ms to 530 ms). Now (``rwt_transports.pending``,
-``http_endpoint.open_request``, docs/limits.md):
+client's round trip went from 1 ms to 530 ms). Now (``rwt_transports.admission.pending``,
+``http.endpoint.open_request``, docs/limits.md):
 
 - what a request holds before it is admitted counts in the budget of input still
   arriving (``--max-fragment-memory``) and so in the memory budget, a host's requests
@@ -41,8 +41,8 @@ from anyio.streams.buffered import BufferedByteReceiveStream
 from websockets.asyncio.client import connect
 
 from rwt import Graph, RosbridgeServer, ServerConfig
-from rwt_transports.http_endpoint import MAX_HEAD_BYTES, READ_SLICE_EVENTS, open_request
-from rwt_transports.pending import HOST_INPUT_SHARE, RETRY_AFTER_S
+from rwt_transports.admission.pending import HOST_INPUT_SHARE, RETRY_AFTER_S
+from rwt_transports.http.endpoint import MAX_HEAD_BYTES, READ_SLICE_EVENTS, open_request
 from tests.support.cli import ENV, RWT_COLD, rwt_serve
 from tests.support.realclients import REPO
 
@@ -271,8 +271,8 @@ PATHS = ["/api/topics/chatter?type=std_msgs/msg/String", "/mcp", "/webrtc", "/ve
 async def test_a_host_reads_a_bounded_number_of_requests_on_every_endpoint(path: str) -> None:
     pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
     pytest.importorskip("aiortc", reason="aiortc is not installed (the webrtc or test extra)")
-    from rwt_transports.mcp_options import McpOptions  # noqa: PLC0415 (after the skips)
-    from rwt_transports.webrtc_signal import WebRtcOptions  # noqa: PLC0415
+    from rwt_transports.http.mcp_options import McpOptions  # noqa: PLC0415 (after the skips)
+    from rwt_transports.webrtc.signalling import WebRtcOptions  # noqa: PLC0415
 
     fields = {"max_connections_per_host": 2, "mcp": McpOptions(), "webrtc": WebRtcOptions()}
     async with serving(**fields) as server, AsyncExitStack() as stack:

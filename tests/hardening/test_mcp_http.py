@@ -45,8 +45,8 @@ pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test
 from mcp import ClientSession
 from mcp.client.streamable_http import streamable_http_client
 
-from rwt_transports.mcp_http import MAX_REQUESTS_IN_FLIGHT, SESSION_SLOTS
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp import MAX_REQUESTS_IN_FLIGHT, SESSION_SLOTS
+from rwt_transports.http.mcp_options import McpOptions
 from tests.agents.test_mcp_safety import ACCEPT, INITIALIZE
 
 pytestmark = pytest.mark.anyio

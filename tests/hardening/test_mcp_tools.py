@@ -34,7 +34,7 @@ from mcp.types import PaginatedRequestParams, TextContent
 
 from rwt_mcp.guard import LISTING_BURST, LISTING_CALLS_PER_S
 from rwt_mcp.resources import RESOURCES_PER_PAGE
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from tests.agents.test_rwt_mcp import Agent, rwt_serve_mcp
 
 pytestmark = pytest.mark.anyio

@@ -138,7 +138,7 @@ async def test_subscribers_that_do_not_read_are_cut_to_the_budget_and_a_reader_g
             # budget was full (their oldest messages dropped, or closed), within the
             # budget then; alone they would hold 24 MB for good
             await until(lambda: server.memory.used <= BUDGET)
-            assert sum(s.queued_bytes for s in sessions) <= server.memory.used
+            assert sum(s.stats.queued_bytes for s in sessions) <= server.memory.used
             # meanwhile within the budget and, for the second before a connection was
             # found not to read, READER_KEEP of its send buffer (docs/limits.md)
             assert sampler.peak <= BUDGET + (STALLED + 1) * int(LIMIT * READER_KEEP)

@@ -231,7 +231,7 @@ async def test_two_in_a_row_over_the_limit_reach_every_subscriber_intact(
         assert [c["header"]["frame_id"] for c in clouds] == ["cloud1", "cloud2"]
         assert clouds[0]["data"] == first_data and clouds[1]["data"] == second_data
         assert statuses == []
-    assert all(session.dropped_frames == 0 for session in harness.server.sessions.values())
+    assert all(session.stats.dropped_frames == 0 for session in harness.server.sessions.values())
 
 
 @pytest.mark.parametrize("transport", ["ws", "tcp"])
@@ -262,15 +262,15 @@ async def test_a_subscriber_that_is_behind_is_told_to_raise_the_limit(
     with anyio.fail_after(240):
         await anyio.to_thread.run_sync(publisher.send, first)  # its writer is stuck on it
         await anyio.to_thread.run_sync(settle, publisher, "first")
-        while subscriber.queued_bytes == 0:  # small ones until one waits in the outbox
+        while subscriber.stats.queued_bytes == 0:  # small ones until one waits in the outbox
             await anyio.to_thread.run_sync(publisher.send, small)
             await anyio.to_thread.run_sync(settle, publisher, f"small{smalls}")
             smalls += 1
-            if subscriber.queued_bytes:  # unless the writer was only about to take it
+            if subscriber.stats.queued_bytes:  # unless the writer was only about to take it
                 await anyio.sleep(0.1)
         await anyio.to_thread.run_sync(publisher.send, late)  # behind: it cannot go
         await anyio.to_thread.run_sync(settle, publisher, "late")
-        assert subscriber.dropped_frames == 1
+        assert subscriber.stats.dropped_frames == 1
         clouds, statuses = await anyio.to_thread.run_sync(read_clouds, stalled, 1 + smalls)
         assert clouds[0]["data"] == first_data
         assert [c["data"] == small_data for c in clouds[1:]] == [True] * smalls

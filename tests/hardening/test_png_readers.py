@@ -105,7 +105,7 @@ async def test_a_png_reader_gets_every_message_and_a_non_reader_is_bounded_and_c
 
     async def sample() -> None:
         while not session.closing:
-            held.append(session.queued_bytes + session.pending_bytes)
+            held.append(session.stats.queued_bytes + session.stats.pending_bytes)
             await anyio.sleep(0.005)
 
     with anyio.fail_after(60):
@@ -116,7 +116,7 @@ async def test_a_png_reader_gets_every_message_and_a_non_reader_is_bounded_and_c
         assert result[0] == list(range(COUNT))  # the reader: every message, in order
         # the non-reader: within its send buffer limit (and one message), then closed
         assert max(held) <= LIMIT + MESSAGE_BYTES + FRAME_OVERHEAD_BYTES
-        assert session.dropped_frames > 0
+        assert session.stats.dropped_frames > 0
         while not [r for r in caplog.records if "slow consumer" in r.getMessage()]:
             await anyio.sleep(0.05)
     await anyio.to_thread.run_sync(settle, publisher, "after")  # the publisher goes on

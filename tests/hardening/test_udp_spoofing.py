@@ -23,8 +23,8 @@ from anyio.abc import SocketAttribute
 from rwt_graph.graph import Graph
 from rwt_protocol.ops import Auth
 from rwt_transports.server import ServerConfig
-from rwt_transports.udp import UdpOptions
-from rwt_transports.udp_validation import (
+from rwt_transports.udp.transport import UdpOptions
+from rwt_transports.udp.validation import (
     AMPLIFICATION,
     CHALLENGE_BUDGET_BYTES,
     CHALLENGE_TEXT,

@@ -16,7 +16,7 @@ import pytest
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_client import Ros, Service
 from rwt_protocol.auth import rosauth_mac
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from rwt_transports.server import rosauth_authenticator
 from rwt_video import VideoTokens, install_token_service
 from rwt_video.tokens import TOKEN_SERVICE

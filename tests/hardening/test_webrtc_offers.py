@@ -20,15 +20,15 @@ from tests.webrtc.conftest import NEEDS_AIORTC
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 
 
+from rwt_transports.admission.shares import SHARES_FROM
 from rwt_transports.server import ServerConfig
-from rwt_transports.shares import SHARES_FROM
-from rwt_transports.webrtc_offer import (
+from rwt_transports.webrtc.offer import (
     MAX_CANDIDATE_ADDRESSES,
     MAX_MEDIA_SECTIONS,
     MAX_SECTION_CANDIDATES,
 )
-from rwt_transports.webrtc_peers import MAX_CONNECTING
-from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
+from rwt_transports.webrtc.peers import MAX_CONNECTING
+from rwt_transports.webrtc.signalling import MAX_OFFER_BYTES, WebRtcOptions
 from tests.support.clients import HAS_AIORTC
 from tests.webrtc.peer import Served, closed_offer, peers_of, rtc_client, serving
 

@@ -2,7 +2,7 @@
 
 First a real aiortc client whose own SCTP is bent as an attacker's would be: it
 ignores the server's ``a=max-message-size`` and withholds the last fragment of a
-message, so the message never ends; the server's SCTP (webrtc_sctp.py) abandons it
+message, so the message never ends; the server's SCTP (webrtc/sctp.py) abandons it
 as it arrives. Then the bounds one by one, on a real aiortc SCTP transport bounded
 as the server's are and fed the DATA chunks of a hostile peer in process (aiortc's
 SCTP takes a second to carry the thousands of packets a bound needs).
@@ -32,9 +32,9 @@ from aiortc import (
 from aiortc.rtcsctptransport import SCTP_DATA_LAST_FRAG, DataChunk
 
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc import INBOX_LIMIT_BYTES
-from rwt_transports.webrtc_sctp import MAX_HELD_CHUNKS, SctpBound, bound_sctp
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.channel import INBOX_LIMIT_BYTES
+from rwt_transports.webrtc.sctp import MAX_HELD_CHUNKS, SctpBound, bound_sctp
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from tests.support.clients import HAS_AIORTC
 from tests.webrtc.peer import RtcClient, Served, peers_of, rtc_client, serving
 

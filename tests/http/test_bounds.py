@@ -17,7 +17,7 @@ import httpx
 import pytest
 
 from rwt_graph.graph import Graph
-from rwt_transports.http_api import DOCUMENT_FETCHES_PER_HOST
+from rwt_transports.http.api import DOCUMENT_FETCHES_PER_HOST
 from rwt_transports.server import ServerConfig
 
 from .support import api_server

@@ -46,5 +46,5 @@ def test_a_stream_past_its_queue_length_drops_the_oldest_messages() -> None:
     assert frames[0].startswith(b"HTTP/1.1 200 OK")
     data = [f for f in frames[1:] if f.startswith(b"data: ")]
     assert data == [b'data: {"data":"%d"}\n\n' % n for n in (7, 8, 9)]
-    assert session.dropped_frames == 7
+    assert session.stats.dropped_frames == 7
     session.close()

@@ -21,6 +21,9 @@ import pytest
 from websockets.asyncio.client import connect
 
 import rwt
+from rwt_protocol.server.compat import Compat
+from rwt_protocol.server.session import SessionConfig
+from rwt_transports.server import ServerConfig
 from tests.support.cli import run_rwt
 from tests.support.clients import running_server
 
@@ -141,3 +144,73 @@ async def test_the_server_says_2_1_0_and_the_conformance_suite_judges_it_so() ->
         run = await anyio.to_thread.run_sync(lambda: run_rwt("conformance", url, "--only", "qos.*"))
     assert "spec version 2.1.0 (from GET /version)" in run.stdout, run.stdout + run.stderr
     assert run.returncode == 0, run.stdout + run.stderr
+
+
+async def _status(ws: ClientConnection) -> dict[str, object]:
+    """The next status the server sends ``ws`` (other frames skipped)."""
+    with anyio.fail_after(20):
+        while True:
+            op = json.loads(await ws.recv())
+            if op["op"] == "status":
+                return op  # type: ignore[no-any-return]
+
+
+async def test_a_publisher_is_told_of_a_subscription_its_offer_cannot_meet() -> None:
+    # ROS 2's "offered incompatible QoS", which rosbridge_suite never passes on (D64)
+    async with running_server() as server:
+        port = server.port("websocket")
+        pub, sub = await _ws(port), await _ws(port)
+        await _send(pub, op="set_level", level="warning")
+        await _send(
+            pub,
+            op="advertise",
+            topic="/scan",
+            type=STRING,
+            id="adv",
+            qos={"reliability": "best_effort"},
+        )
+        await _sync(pub)
+        await _send(sub, op="subscribe", topic="/scan", qos={"reliability": "reliable"})
+        told = await _status(pub)
+        assert told["level"] == "warning" and told["id"] == "adv"
+        assert str(told["msg"]).startswith("advertise: /scan offers keep_last 10, best_effort")
+        assert "(reliability: reliable asked of a best_effort publisher)" in str(told["msg"])
+        await _send(pub, op="publish", topic="/scan", msg={"data": "lost"})
+        assert _data(await _sync(sub)) == []  # as ROS 2: the pair is not matched
+        await pub.close()
+        await sub.close()
+
+
+async def test_a_publisher_that_misses_its_offered_deadline_is_told() -> None:
+    # ROS 2's "offered deadline missed" (D65): the client advertised with a deadline
+    async with running_server() as server:
+        pub = await _ws(server.port("websocket"))
+        await _send(pub, op="set_level", level="warning")
+        await _send(pub, op="advertise", topic="/beat", type=STRING, id="b", qos={"deadline": 0.2})
+        await _send(pub, op="publish", topic="/beat", msg={"data": "once"})
+        assert await _status(pub) == {
+            "op": "status",
+            "level": "warning",
+            "msg": "advertise: /beat missed its offered deadline: nothing published for 0.2 s",
+            "id": "b",
+        }
+        await pub.close()
+
+
+async def test_compat_rosbridge_2_1_ignores_a_malformed_qos_as_any_unknown_field() -> None:
+    # rosbridge_suite 2.1.0 (protocol 2.0.0) knows no qos: whatever it holds is not read (D62)
+    config = ServerConfig(session=SessionConfig(compat=Compat.ROSBRIDGE_2_1))
+    async with running_server(config) as server:
+        port = server.port("websocket")
+        pub, sub = await _ws(port), await _ws(port)
+        for ws in (pub, sub):  # statuses only once asked for, as rosbridge_suite sends none
+            await _send(ws, op="set_level", level="warning")
+        bad = {"depth": -3, "durability": "forever"}
+        await _send(pub, op="advertise", topic="/t", type=STRING, qos=bad, id="a1")
+        await _send(sub, op="subscribe", topic="/t", qos={"lifespan": "soon", "history": 7})
+        assert await _sync(sub) == []
+        await _send(pub, op="publish", topic="/t", msg={"data": "ok"}, qos=[1, 2])
+        assert await _sync(pub) == []  # no error, no warning
+        assert await _sync(sub) == [{"op": "publish", "topic": "/t", "msg": {"data": "ok"}}]
+        await pub.close()
+        await sub.close()

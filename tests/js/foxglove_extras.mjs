@@ -24,6 +24,8 @@
 //                            it; its value read and the next COUNT values pushed
 //   graph URL TOPIC          follow the connection graph until TOPIC is published and
 //                            subscribed to; its publisher and subscriber ids
+//   collect URL TOPIC END    subscribe to TOPIC (std_msgs/msg/String); the data of what
+//                            arrives until a message whose data is END does
 //   robot URL                a robot whose program is roslib: it subscribes to /cmd_vel and
 //                            /tf, advertises the service /reset and the topic /chatter (in
 //                            that order, so once /chatter is a channel all are in the
@@ -88,6 +90,29 @@ async function publish() {
   }
   fox.client.close();
   return { sent };
+}
+
+async function collect() {
+  const [topic, end] = args;
+  const fox = foxglove(url);
+  const channel = await fox.channel(topic);
+  const sid = fox.client.subscribe(channel.id);
+  const reader = new MessageReader(rosmsg.parse(channel.schema, { ros2: true }));
+  const received = [];
+  while (received[received.length - 1] !== end) {
+    const { message } = await fox.next(
+      (e) => e.kind === "message" && e.message.subscriptionId === sid,
+      `the message ${end} on ${topic}`,
+    );
+    const bytes = new Uint8Array(
+      message.data.buffer,
+      message.data.byteOffset,
+      message.data.byteLength,
+    );
+    received.push(reader.readMessage(bytes).data);
+  }
+  fox.client.close();
+  return { received };
 }
 
 function rosbridge() {
@@ -314,6 +339,18 @@ async function robot() {
 }
 
 await main(
-  { receive, publish, play, assets, call: callService, params, param, watch, graph, robot },
+  {
+    receive,
+    publish,
+    play,
+    assets,
+    call: callService,
+    params,
+    param,
+    watch,
+    graph,
+    robot,
+    collect,
+  },
   scenario,
 );

@@ -25,7 +25,7 @@ from mcp import Client, StdioServerParameters
 from mcp.types import CallToolResult, ElicitRequestParams, ElicitResult
 
 from rwt import RosbridgeServer, ServerConfig
-from rwt_transports.mcp_options import McpOptions
+from rwt_transports.http.mcp_options import McpOptions
 from tests.safety.example import EXAMPLE, STOP, Robot, example_file, twist
 from tests.support.cli import ENV, RWT
 

@@ -201,8 +201,8 @@ def test_a_run_reaches_the_peer_as_its_messages_one_by_one(
         side.read(None)
     fast, general = sides
     assert fast.frames == general.frames
-    assert fast.session.dropped_frames == general.session.dropped_frames
-    assert fast.session.expired_messages == general.session.expired_messages
+    assert fast.session.stats.dropped_frames == general.session.stats.dropped_frames
+    assert fast.session.stats.expired_messages == general.session.stats.expired_messages
     for side in sides:
         side.session.close()
 
@@ -295,4 +295,4 @@ def test_an_oversized_message_in_a_run_is_held_alone_as_one_by_one() -> None:
     assert texts == ["bigxxxxxx", "next"]  # the second big one dropped: "next" waited
     warnings = [op["msg"] for op in ops if op["op"] == "status"]
     assert warnings[-1].startswith("dropped a 3047-byte message of /t")
-    assert fast.session.dropped_frames == general.session.dropped_frames == 4
+    assert fast.session.stats.dropped_frames == general.session.stats.dropped_frames == 4

@@ -228,19 +228,19 @@ def test_png_is_deflated_off_the_loop_in_order_and_a_backlog_keeps_every_message
     """With a transport that runs jobs, a png message is a background job (pngout):
     a subscriber's messages in order, however many wait within its send buffer limit."""
     sub = Peer(graph, "sub")
-    sub.session.run_jobs()  # as the connection runtime does
+    sub.session.jobs.transport_runs = True  # as the connection runtime does
     sub.send(op="subscribe", topic="/c", type="std_msgs/String", compression="png")
     for n in range(100):  # faster than the worker takes them
         pub.send(op="publish", topic="/c", msg={"data": str(n)})
     assert sub.session.frames_to_send() == []  # nothing deflated on the loop
-    assert sub.session.pending_bytes >= 100 * pngout_cost("0")
-    while (job := sub.session.take_background_job()) is not None:
+    assert sub.session.stats.pending_bytes >= 100 * pngout_cost("0")
+    while (job := sub.session.jobs.take_background()) is not None:
         sub.session.finish_job(job, job.run(), 0.0)
     texts = [json.loads(decode_png(str(f["data"]), max_bytes=1 << 20)) for f in decoded(sub)]
     assert [t["msg"]["data"] for t in texts] == [str(n) for n in range(100)]
-    assert sub.session.dropped_frames == 0 and sub.session.pending_bytes == 0
+    assert sub.session.stats.dropped_frames == 0 and sub.session.stats.pending_bytes == 0
     pub.send(op="publish", topic="/c", msg={"data": "late"})
-    job = sub.session.take_background_job()
+    job = sub.session.jobs.take_background()
     assert job is not None
     sub.send(op="unsubscribe", topic="/c")  # gone while its message was deflated
     sub.session.finish_job(job, job.run(), 0.0)
@@ -262,7 +262,7 @@ def test_png_backlog_past_the_send_buffer_limit_loses_its_oldest(graph: Graph, p
         "sub",
         config=SessionConfig(send_buffer_limit=limit, status_level=StatusLevel.WARNING),
     )
-    session.run_jobs()
+    session.jobs.transport_runs = True
     session.receive_frame(
         json.dumps(
             {"op": "subscribe", "topic": "/c", "type": "std_msgs/String", "compression": "png"}
@@ -271,8 +271,8 @@ def test_png_backlog_past_the_send_buffer_limit_loses_its_oldest(graph: Graph, p
     )
     for n in range(50):
         pub.send(op="publish", topic="/c", msg={"data": f"{n:02}"})
-    assert session.queued_bytes + session.pending_bytes <= limit
-    while (job := session.take_background_job()) is not None:
+    assert session.stats.queued_bytes + session.stats.pending_bytes <= limit
+    while (job := session.jobs.take_background()) is not None:
         session.finish_job(job, job.run(), 0.0)
     frames = [json.loads(f.data) for f in session.frames_to_send()]
     texts = [
@@ -282,7 +282,7 @@ def test_png_backlog_past_the_send_buffer_limit_loses_its_oldest(graph: Graph, p
     ]
     got = [t["msg"]["data"] for t in texts]
     assert got == [f"{n:02}" for n in range(50 - len(got), 50)] and 10 < len(got) <= 20
-    assert session.dropped_frames == 50 - len(got)
+    assert session.stats.dropped_frames == 50 - len(got)
     warnings = [f["msg"] for f in frames if f["op"] == "status"]
     assert len(warnings) == 1 and "dropping the oldest topic messages" in warnings[0]
 

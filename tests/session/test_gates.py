@@ -438,7 +438,7 @@ def test_over_the_limit_the_oldest_topic_messages_go_and_drops_are_counted(
     assert warning["level"] == "warning" and "dropping the oldest topic messages" in warning["msg"]
     published = [f["msg"]["data"][:6] for f in frames if f["op"] == "publish"]  # type: ignore[index]
     assert published == sorted(published) and published[-1] == "000099"  # the newest are kept
-    assert peer.session.dropped_frames == 100 - len(published)
+    assert peer.session.stats.dropped_frames == 100 - len(published)
 
 
 def test_status_and_replies_are_never_dropped(graph: Graph) -> None:
@@ -475,7 +475,7 @@ def test_a_slow_but_reading_connection_is_not_closed(graph: Graph, clock: FakeCl
         clock.now += 3.0
         peer.session.handle_timer(clock.now)
     assert peer.commands() == []
-    assert peer.session.dropped_frames > 0
+    assert peer.session.stats.dropped_frames > 0
 
 
 def test_catching_up_ends_the_episode_and_a_new_one_warns_again(
@@ -495,7 +495,7 @@ def test_undroppable_frames_past_the_limit_close_the_connection(graph: Graph) ->
         peer.send(op="subscribe", topic=f"/nope{i}", id=i)  # each gets an error status
     [close] = peer.commands()
     assert close.code is CloseCode.POLICY_VIOLATION and "send buffer overflow" in close.reason
-    assert peer.session.queued_bytes < 500 + 200
+    assert peer.session.stats.queued_bytes < 500 + 200
 
 
 def test_frames_are_taken_in_bounded_batches(graph: Graph) -> None:

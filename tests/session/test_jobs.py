@@ -22,7 +22,7 @@ from tests.conftest import Peer
 
 def _running(graph: Graph, name: str) -> Peer:
     peer = Peer(graph, name)
-    peer.session.run_jobs()  # as the pump does
+    peer.session.jobs.transport_runs = True  # as the pump does
     return peer
 
 
@@ -42,8 +42,8 @@ def test_an_inflated_png_op_is_handled_in_its_turn(graph: Graph, listener: Peer)
     sender = _running(graph, "sender")
     sender.send(op="advertise", topic="/c", type="std_msgs/String")
     sender.send_raw(_publish_png("inflated"))
-    assert sender.session.has_jobs and listener.received() == []  # not on the loop
-    job = sender.session.take_job()
+    assert sender.session.jobs.waiting and listener.received() == []  # not on the loop
+    job = sender.session.jobs.take()
     assert job is not None
     sender.session.finish_job(job, job.run(), 0.0)
     assert [m["msg"] for m in listener.received()] == [{"data": "inflated"}]
@@ -56,7 +56,7 @@ def test_a_refused_or_broken_inflating_is_told_and_the_session_goes_on(
     sender.send(op="advertise", topic="/c", type="std_msgs/String")
     for outcome in (RemoteProtocolError("data is not a valid PNG image"), ZeroDivisionError()):
         sender.send_raw(_publish_png("x"))
-        job = sender.session.take_job()
+        job = sender.session.jobs.take()
         assert job is not None
         sender.session.finish_job(job, outcome, 0.0)
     assert [s["msg"] for s in sender.statuses()] == [
@@ -64,7 +64,7 @@ def test_a_refused_or_broken_inflating_is_told_and_the_session_goes_on(
         "png: internal error",
     ]
     sender.send_raw(_publish_png("after"))
-    job = sender.session.take_job()
+    job = sender.session.jobs.take()
     assert job is not None
     sender.session.finish_job(job, job.run(), 0.0)
     assert [m["msg"] for m in listener.received()] == [{"data": "after"}]
@@ -76,7 +76,7 @@ def test_a_deflating_that_fails_is_told_to_its_subscriber(graph: Graph, pub: Pee
     outcomes = [EncodeFailure("publish", "too deep"), ZeroDivisionError()]
     for outcome in outcomes:
         pub.send(op="publish", topic="/c", msg={"data": "x"})
-        job = sub.session.take_background_job()
+        job = sub.session.jobs.take_background()
         assert job is not None
         sub.session.finish_job(job, outcome, 0.0)
     assert [s["msg"] for s in sub.statuses()] == [

@@ -60,10 +60,10 @@ def test_an_outbox_is_charged_until_its_transport_wrote_what_it_took(
     budget = MemoryBudget(64 * 1024 * KiB)
     session = subscriber(graph, "a", budget)
     flood(graph, 10)
-    queued = session.queued_bytes
+    queued = session.stats.queued_bytes
     assert queued > 10 * PAYLOAD and budget.used == queued == session.memory.held  # type: ignore[union-attr]
     frames = session.frames_to_send()
-    assert len(frames) == 10 and session.queued_bytes == 0
+    assert len(frames) == 10 and session.stats.queued_bytes == 0
     assert budget.used == queued  # taken, not yet written: still held
     session.frames_sent()
     assert budget.used == 0 and budget.holders == 0
@@ -87,7 +87,7 @@ def test_a_connection_that_takes_nothing_keeps_only_its_newest_message_when_full
         got += numbers(reader)
         clock.now += PRESSURE_STALL_S
     assert got == list(range(300))
-    assert stalled.dropped_frames > 100 and budget.used <= budget.limit
+    assert stalled.stats.dropped_frames > 100 and budget.used <= budget.limit
     frames = [json.loads(frame.data) for frame in stalled.frames_to_send()]
     assert frames[-1]["msg"]["data"].startswith("00000299")  # the newest stays
     warnings = [f["msg"] for f in frames if f["op"] == "status"]
@@ -107,8 +107,8 @@ def test_a_connection_that_reads_keeps_its_share_or_three_quarters_of_its_buffer
     flood(graph, 240, start=1)  # 240 KB: past the budget, within its own limit
     keep = int(LIMIT * READER_KEEP)
     assert budget.used > budget.limit
-    assert keep - 2 * KiB <= reader.queued_bytes <= keep
-    assert reader.dropped_frames > 0
+    assert keep - 2 * KiB <= reader.stats.queued_bytes <= keep
+    assert reader.stats.dropped_frames > 0
     got = numbers(reader)
     assert got == list(range(241 - len(got), 241))  # the oldest went
 
@@ -125,7 +125,7 @@ def test_a_client_holding_replies_it_does_not_read_is_closed_while_the_budget_is
         json.dumps({"op": "call_service", "service": "/nobody", "id": big}),
         clock.now,
     )  # its error status and failure reply hold the id: unread
-    assert holder.queued_reply_bytes > PRESSURE_FLOOR_BYTES
+    assert holder.stats.queued_reply_bytes > PRESSURE_FLOOR_BYTES
     assert not budget.fits(LIMIT)  # someone is refused: the budget is full
     clock.now += 1.0
     reader = subscriber(graph, "reader", budget)

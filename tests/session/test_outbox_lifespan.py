@@ -158,7 +158,11 @@ def test_a_subscriber_that_does_not_read_gets_the_newest_samples_and_a_drop_coun
     assert got[-1] == "s199"  # the newest always
     assert kept - 1 <= len(got) <= kept + 1
     assert got == [f"s{i}" for i in range(200 - len(got), 200)]  # the newest, in order
-    assert reader.session.expired_messages == reader.session.dropped_frames == 200 - len(got)
+    assert (
+        reader.session.stats.expired_messages
+        == reader.session.stats.dropped_frames
+        == 200 - len(got)
+    )
 
 
 def test_a_rosbridge_publishers_messages_are_not_cut_by_time(
@@ -173,4 +177,4 @@ def test_a_rosbridge_publishers_messages_are_not_cut_by_time(
         writer.send(op="publish", topic="/chat", msg={"data": f"c{i}"})
     got = [m["msg"]["data"] for m in reader.received() if m["op"] == "publish"]  # type: ignore[index]
     assert got == [f"c{i}" for i in range(200)]
-    assert reader.session.dropped_frames == 0
+    assert reader.session.stats.dropped_frames == 0

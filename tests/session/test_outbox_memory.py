@@ -62,5 +62,5 @@ def test_a_stalled_subscriber_of_small_messages_keeps_fewer_than_payload_alone_a
     size = len(frames[-1].data)
     assert len(publishes) <= limit // (size + FRAME_OVERHEAD_BYTES) + 1
     assert len(publishes) < limit // size // 2  # payload alone would keep over twice as many
-    assert session.dropped_frames == sent - len(publishes)
+    assert session.stats.dropped_frames == sent - len(publishes)
     assert [int(m["msg"]["data"]) for m in publishes] == list(range(sent - len(publishes), sent))

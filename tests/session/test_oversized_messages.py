@@ -46,11 +46,11 @@ def test_a_message_over_the_limit_reaches_an_idle_subscriber_and_no_status(graph
     session = subscriber(graph, "sub")
     publisher = graph.create_publisher("/big", "std_msgs/msg/String")
     publisher.publish(big("a"))
-    assert session.queued_bytes > LIMIT  # held alone, past the limit
+    assert session.stats.queued_bytes > LIMIT  # held alone, past the limit
     assert decoded(session) == [{"op": "publish", "topic": "/big", "msg": big("a")}]
     publisher.publish(big("b"))  # the outbox is empty again: the next one goes too
     assert decoded(session) == [{"op": "publish", "topic": "/big", "msg": big("b")}]
-    assert session.dropped_frames == 0
+    assert session.stats.dropped_frames == 0
 
 
 def test_queued_bytes_never_exceed_the_limit_plus_one_message(graph: Graph) -> None:
@@ -58,15 +58,15 @@ def test_queued_bytes_never_exceed_the_limit_plus_one_message(graph: Graph) -> N
     big_topic = graph.create_publisher("/big", "std_msgs/msg/String")
     small_topic = graph.create_publisher("/small", "std_msgs/msg/String")
     big_topic.publish(big("first"))
-    message = session.queued_bytes  # one message's charge: its payload and overhead
+    message = session.stats.queued_bytes  # one message's charge: its payload and overhead
     assert message > LIMIT
     most, received = 0, []
     for i in range(300):  # a subscriber that reads less than comes, catching up now and then
         big_topic.publish(big(f"{i:03d}"))
-        most = max(most, session.queued_bytes)
+        most = max(most, session.stats.queued_bytes)
         for _ in range(3):
             small_topic.publish({"data": f"{i:03d}" + "y" * 2000})
-            most = max(most, session.queued_bytes)
+            most = max(most, session.stats.queued_bytes)
         if i % 10 == 9:
             received += decoded(session)
         elif i % 4 == 0:
@@ -96,7 +96,7 @@ def test_one_that_comes_while_others_wait_is_dropped_with_a_status_naming_the_op
     text = str(messages[1]["msg"])
     assert "--send-buffer-limit 65536 bytes" in text and "/big" in text, text
     assert [m["msg"] for m in messages if m["op"] == "publish"] == [{"data": "s1"}, {"data": "s2"}]
-    assert session.dropped_frames == 2
+    assert session.stats.dropped_frames == 2
     big_topic.publish(big("c"))  # not behind any more: it goes out
     assert decoded(session) == [{"op": "publish", "topic": "/big", "msg": big("c")}]
 

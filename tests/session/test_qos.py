@@ -91,7 +91,7 @@ def test_a_queued_message_past_its_lifespan_is_never_taken(graph: Graph, clock: 
         clock.now += 0.05
     # taken at 100.5: m0 (100.0) .. m5 (100.25) are past 0.2 s; m6 (100.3) is not
     assert _data(_taken(sub, clock.now)) == ["m6", "m7", "m8", "m9"]
-    assert sub.session.expired_messages == 6
+    assert sub.session.stats.expired_messages == 6
 
 
 def test_the_topics_lifespan_binds_a_subscriber_that_gave_none(
@@ -130,7 +130,7 @@ def test_depth_bounds_what_a_subscribers_queue_keeps(graph: Graph) -> None:
     _publish(pub, *"abcdefg")
     assert _data(_taken(sub)) == ["e", "f", "g"]
     assert _data(_taken(plain)) == list("abcdefg")
-    assert sub.session.dropped_frames == 4
+    assert sub.session.stats.dropped_frames == 4
 
 
 def test_depth_bounds_a_throttled_subscriptions_queue_too(graph: Graph, clock: FakeClock) -> None:
@@ -346,3 +346,80 @@ def test_the_topics_offered_deadline_warns_its_plain_subscribers(
         sub.session.handle_timer(clock.now)
     [warning] = sub.statuses()
     assert warning["msg"] == "subscribe: /t missed its deadline: no message for 1 s"
+
+
+def _silence(peer: Peer, clock: FakeClock, seconds: float) -> None:
+    """``seconds`` pass without a message; the peer's timers run every 0.1 s."""
+    for _ in range(round(seconds / 0.1)):
+        clock.now += 0.1
+        peer.session.handle_timer(clock.now)
+
+
+def test_a_publisher_that_misses_its_offered_deadline_is_warned_once_per_episode(
+    graph: Graph, clock: FakeClock
+) -> None:
+    pub = Peer(graph, "p", level=StatusLevel.WARNING)
+    plain = Peer(graph, "q", level=StatusLevel.WARNING)
+    pub.send(op="advertise", topic="/t", type=STRING, qos={"deadline": 0.5}, id="a")
+    plain.send(op="advertise", topic="/t", type=STRING)  # asked no deadline: not told
+    assert pub.statuses() == []
+    _publish(pub, "a")
+    _silence(pub, clock, 0.4)
+    assert pub.statuses() == []
+    _silence(pub, clock, 2.0)  # the deadline passed long ago: one warning for the silence
+    assert pub.statuses() == [
+        {
+            "op": "status",
+            "level": "warning",
+            "msg": "advertise: /t missed its offered deadline: nothing published for 0.5 s",
+            "id": "a",
+        }
+    ]
+    _publish(plain, "b")  # anyone's message on the topic ends the episode
+    _silence(pub, clock, 2.0)
+    assert len(pub.statuses()) == 1
+    assert plain.statuses() == []
+    pub.send(op="unadvertise", topic="/t")
+    _silence(pub, clock, 2.0)
+    assert pub.statuses() == []  # no longer its offer
+
+
+def test_a_publisher_is_warned_once_of_subscriptions_its_offer_cannot_meet(graph: Graph) -> None:
+    pub = Peer(graph, "p", level=StatusLevel.WARNING)
+    pub.send(op="advertise", topic="/scan", type=STRING, qos={"reliability": "best_effort"}, id=7)
+    pub.statuses()
+    first, second = Peer(graph, "s1"), Peer(graph, "s2")
+    first.send(op="subscribe", topic="/scan", qos={"reliability": "reliable"})
+    [warning] = pub.statuses()
+    assert warning == {
+        "op": "status",
+        "level": "warning",
+        "msg": "advertise: /scan offers keep_last 10, best_effort, volatile, which a subscription"
+        " cannot use (reliability: reliable asked of a best_effort publisher): it receives"
+        " nothing from this topic while that offer stands, as in ROS 2 (offered incompatible"
+        " QoS)",
+        "id": 7,
+    }
+    second.send(op="subscribe", topic="/scan", qos={"reliability": "reliable"})
+    assert pub.statuses() == []  # the same episode
+    first.send(op="unsubscribe", topic="/scan")
+    second.send(op="unsubscribe", topic="/scan")
+    second.send(op="subscribe", topic="/scan", qos={"durability": "transient_local"})
+    [warning] = pub.statuses()  # a new episode
+    assert "durability: transient_local asked of a volatile publisher" in str(warning["msg"])
+
+
+def test_a_publisher_that_comes_after_a_subscription_it_cannot_meet_is_warned(
+    graph: Graph,
+) -> None:
+    sub = Peer(graph, "s")
+    sub.send(op="subscribe", topic="/scan", type=STRING, qos={"reliability": "reliable"})
+    first, later = (
+        Peer(graph, "p", level=StatusLevel.WARNING),
+        Peer(graph, "q", StatusLevel.WARNING),
+    )
+    first.send(op="advertise", topic="/scan", type=STRING, qos={"reliability": "best_effort"})
+    later.send(op="advertise", topic="/scan", type=STRING, qos={"reliability": "best_effort"})
+    for peer in (first, later):  # each publisher that offers it, once
+        [warning] = peer.statuses()
+        assert "(offered incompatible QoS)" in str(warning["msg"])

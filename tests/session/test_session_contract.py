@@ -9,8 +9,12 @@ one renamed in a session) fails here at once, whatever typing sees.
 
 Containment is the runtime's (``SessionBase.contain``), for every protocol: a
 timer or a job that fails is reported to the peer in its protocol's own words
-(rosbridge's ``status`` op, Foxglove's ``status`` message, the test double's
-text line) and the connection stays open (docs/limits.md, containment).
+(rosbridge's ``status`` op, over WebRTC too, Foxglove's ``status`` message, an HTTP
+event stream's ``status`` event, nothing for an MCP agent, which hears of problems as
+tool errors, the test double's text line) and the connection stays open
+(docs/limits.md, containment). The five sessions the server makes (rosbridge,
+Foxglove, rosbridge on WebRTC with its lossy lane, an HTTP request, an MCP session)
+and the test double are checked alike.
 """
 
 from __future__ import annotations
@@ -26,13 +30,15 @@ from rwt_foxglove import FoxgloveSession
 from rwt_foxglove.protocol import StatusLevel as FoxgloveLevel
 from rwt_graph.graph import Graph
 from rwt_graph.port import GraphFront
+from rwt_http import HttpSession, parse_route
 from rwt_protocol.ports import GraphPort
 from rwt_protocol.runtime.connection import SessionBase
-from rwt_protocol.runtime.contract import Job, ServerSession
+from rwt_protocol.runtime.contract import ServerSession
+from rwt_protocol.runtime.jobs import Job
+from rwt_protocol.runtime.request import SessionRequest
 from rwt_protocol.runtime.rules import ClientRules
 from rwt_protocol.server.pngout import PngPublishJob
 from rwt_protocol.server.session import Session, SessionConfig
-from rwt_transports.frontends import SessionRequest
 from tests.support.echo import EchoSession
 
 
@@ -66,9 +72,43 @@ def _rosbridge(graph: Graph) -> Session:
     return Session(graph.port, "client#1", config=SessionConfig())
 
 
-@pytest.mark.parametrize("make", [_rosbridge, _foxglove], ids=["rosbridge", "foxglove"])
+def _webrtc(graph: Graph) -> Session:
+    """A rosbridge session as a WebRTC peer's: its lossy lane open (D36)."""
+    session = _rosbridge(graph)
+    session.open_lossy_lane(0, lambda: None)
+    return session
+
+
+def _http(graph: Graph) -> HttpSession:
+    """An HTTP request's session: an event stream (what stays open), its request taken."""
+    graph.create_publisher("/chatter", "std_msgs/msg/String")
+    route = parse_route("GET", "/api/topics/chatter/events")
+    session = HttpSession(graph.port, "http:127.0.0.1:5000#1", route, config=ClientRules())
+    session.start(0.0)
+    session.receive_frame(b"", 0.0)  # the request's body: the stream's head is queued
+    return session
+
+
+def _mcp(graph: Graph) -> SessionBase:
+    pytest.importorskip("mcp", reason="the MCP SDK is not installed (the mcp or test extra)")
+    from rwt_mcp.session import McpSession  # noqa: PLC0415 (after the skip)
+
+    return McpSession(graph.port, "mcp:127.0.0.1:5000#1", config=ClientRules())
+
+
+SESSIONS = [
+    pytest.param(_rosbridge, id="rosbridge"),
+    pytest.param(_foxglove, id="foxglove"),
+    pytest.param(_webrtc, id="webrtc"),
+    pytest.param(_http, id="http"),
+    pytest.param(_mcp, id="mcp"),
+]
+"""The sessions the server makes, one of each front end's."""
+
+
+@pytest.mark.parametrize("make", SESSIONS)
 def test_each_protocols_session_has_every_member_of_the_contract(
-    make: Callable[[Graph], Session | FoxgloveSession],
+    make: Callable[[Graph], SessionBase],
 ) -> None:
     session = make(Graph())
     missing = sorted(name for name in _members(ServerSession) if not hasattr(session, name))
@@ -99,25 +139,37 @@ def _echo(graph: Graph) -> EchoSession:
     return EchoSession(request)
 
 
-def _rosbridge_words(frame: bytes) -> bool:
-    return json.loads(frame) == {"op": "status", "level": "error", "msg": "internal error"}
+def _rosbridge_words(told: list[bytes]) -> bool:
+    error = {"op": "status", "level": "error", "msg": "internal error"}
+    return len(told) == 1 and json.loads(told[0]) == error
 
 
-def _foxglove_words(frame: bytes) -> bool:
-    message = json.loads(frame)
+def _foxglove_words(told: list[bytes]) -> bool:
+    message = json.loads(told[0]) if len(told) == 1 else {}
     return message.get("op") == "status" and (message["level"], message["message"]) == (
         int(FoxgloveLevel.ERROR),
         "internal error",
     )
 
 
-def _echo_words(frame: bytes) -> bool:
-    return frame == b"error: internal error"
+def _http_words(told: list[bytes]) -> bool:
+    return told == [b'event: status\ndata: {"level":"error","text":"internal error"}\n\n']
+
+
+def _mcp_words(told: list[bytes]) -> bool:
+    return told == []  # a tool's caller hears of a problem as a tool error, never a frame
+
+
+def _echo_words(told: list[bytes]) -> bool:
+    return told == [b"error: internal error"]
 
 
 PROTOCOLS = [
     pytest.param(_rosbridge, _rosbridge_words, id="rosbridge"),
     pytest.param(_foxglove, _foxglove_words, id="foxglove"),
+    pytest.param(_webrtc, _rosbridge_words, id="webrtc"),
+    pytest.param(_http, _http_words, id="http"),
+    pytest.param(_mcp, _mcp_words, id="mcp"),
     pytest.param(_echo, _echo_words, id="test-double"),
 ]
 
@@ -154,13 +206,13 @@ class _FailingJob:
 
 @pytest.mark.parametrize(("make", "words"), PROTOCOLS)
 def test_a_failing_timer_is_contained_and_told_in_the_protocols_words(
-    make: Callable[[Graph], SessionBase], words: Callable[[bytes], bool]
+    make: Callable[[Graph], SessionBase], words: Callable[[list[bytes]], bool]
 ) -> None:
     session = _fresh(make)
     session.call_at(1.0, _boom)
     session.handle_timer(1.0)  # does not raise
     told = _told(session)
-    assert len(told) == 1 and words(told[0]), told
+    assert words(told), told
     assert _still_open(session)
     session.close()
 
@@ -168,12 +220,12 @@ def test_a_failing_timer_is_contained_and_told_in_the_protocols_words(
 @pytest.mark.parametrize(("make", "words"), PROTOCOLS)
 @pytest.mark.parametrize("background", [False, True], ids=["input-job", "background-job"])
 def test_a_failing_job_is_contained_and_told_in_the_protocols_words(
-    make: Callable[[Graph], SessionBase], words: Callable[[bytes], bool], background: bool
+    make: Callable[[Graph], SessionBase], words: Callable[[list[bytes]], bool], background: bool
 ) -> None:
     session = _fresh(make)
-    session.run_jobs()
+    session.jobs.transport_runs = True
     session.add_job(_FailingJob(), background=background)
-    job = session.take_background_job() if background else session.take_job()
+    job = session.jobs.take_background() if background else session.jobs.take()
     assert job is not None
     try:
         outcome: object = job.run()
@@ -181,7 +233,7 @@ def test_a_failing_job_is_contained_and_told_in_the_protocols_words(
         outcome = exc
     session.finish_job(job, outcome, 1.0)  # does not raise
     told = _told(session)
-    assert len(told) == 1 and words(told[0]), told
+    assert words(told), told
     assert _still_open(session)
     session.close()
 

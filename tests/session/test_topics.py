@@ -258,7 +258,7 @@ def test_slow_peer_loses_oldest_topic_messages_never_statuses(graph: Graph) -> N
     assert data[-1] == "0099"
     assert data == sorted(data)
     assert len(data) < 100
-    assert slow.dropped_frames == 100 - len(data)
+    assert slow.stats.dropped_frames == 100 - len(data)
 
 
 def test_in_process_publisher_and_subscriber_meet_clients(graph: Graph) -> None:

@@ -21,8 +21,8 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from rwt_transports.memory import MemoryConnection
 from rwt_transports.server import RosbridgeServer, ServerConfig
-from rwt_transports.udp_validation import CHALLENGE_TEXT, MIN_PROBE_BYTES, SESSION_CHALLENGE_TEXT
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.udp.validation import CHALLENGE_TEXT, MIN_PROBE_BYTES, SESSION_CHALLENGE_TEXT
+from rwt_transports.webrtc.signalling import WebRtcOptions
 
 Message = dict[str, Any]
 

@@ -15,7 +15,8 @@ from rwt_protocol.ports import MessageEvent
 from rwt_protocol.runtime.access import Family
 from rwt_protocol.runtime.connection import SessionBase
 from rwt_protocol.runtime.outbox import OutFrame
-from rwt_transports.frontends import FrontEnd, SessionRequest
+from rwt_protocol.runtime.request import SessionRequest
+from rwt_transports.frontends import FrontEnd
 
 ECHO = "rwt.test.echo"
 
@@ -29,7 +30,7 @@ class EchoSession(SessionBase):
         super().__init__(
             request.graph,
             request.client_id,
-            config=request.config,
+            config=request.rules,
             on_output=request.on_output,
             peer=request.peer,
             on_closed=request.on_closed,

@@ -58,7 +58,7 @@ PRELOAD = (
 #: What ``rwt mcp`` and ``rwt serve --mcp`` load (the MCP SDK, 0.6 s of CPU a start), for
 #: the 20 or so runs a suite makes of them; without the SDK those commands refuse to start,
 #: and every other run stays warm.
-PRELOAD_OPTIONAL = ("rwt_mcp.cli", "rwt_transports.mcp_http")
+PRELOAD_OPTIONAL = ("rwt_mcp.cli", "rwt_transports.http.mcp")
 #: What Python clients of the tests import before they connect (roslibpy's twisted):
 #: preloaded for ``--python`` runs. Not the reactor, which opens a descriptor, nor
 #: autobahn's twisted half, which sets txaio to twisted for good (roslibpy's asyncio

@@ -71,8 +71,8 @@ async def test_an_mcp_tool_call_is_refused_through_the_gate(denials: Denials) ->
 
 async def test_a_webrtc_video_track_is_refused_through_the_gate(denials: Denials) -> None:
     pytest.importorskip("aiortc", reason="the WebRTC tests need aiortc", exc_type=ImportError)
-    from rwt_transports.webrtc_signal import VideoRequest  # noqa: PLC0415
-    from rwt_transports.webrtc_video import WebRtcVideo  # noqa: PLC0415
+    from rwt_transports.webrtc.signalling import VideoRequest  # noqa: PLC0415
+    from rwt_transports.webrtc.video import WebRtcVideo  # noqa: PLC0415
 
     graph = Graph()
     graph.create_publisher("/secret/image", "sensor_msgs/msg/Image")

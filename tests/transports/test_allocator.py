@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from rwt_transports.allocator import MMAP_THRESHOLD_MAX, tune_allocator
+from rwt_transports.process.allocator import MMAP_THRESHOLD_MAX, tune_allocator
 
 
 @pytest.mark.skipif(

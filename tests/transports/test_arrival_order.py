@@ -31,7 +31,7 @@ import pytest
 from websockets.sync.client import connect
 
 from rwt_transports import pump
-from rwt_transports.admission import Admission
+from rwt_transports.admission.arrival import Admission
 from tests.support.clients import Harness, running_server
 
 pytestmark = pytest.mark.anyio

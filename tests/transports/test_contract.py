@@ -21,7 +21,7 @@ from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.runtime.inframes import FramerEvent, InFrame
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_stacks import stack_refusal
+from rwt_transports.webrtc.stacks import stack_refusal
 from tests.support.clients import (
     CONTRACT_TRANSPORTS,
     HAS_AIORTC,

@@ -22,10 +22,11 @@ import pytest
 import trustme
 
 from rwt_graph.graph import Graph
+from rwt_protocol.runtime.flow import FlowControl
 from rwt_protocol.runtime.outbox import OutFrame
 from rwt_protocol.server.session import CloseCode, Session, SessionConfig
 from rwt_protocol.shortcuts import ENV_VAR
-from rwt_transports.flow import ChannelAbilities, FlowControl
+from rwt_transports.channel import ChannelAbilities
 from rwt_transports.holding import Held
 from rwt_transports.pump import ConnectionPump, flush_deferred
 from rwt_transports.server import ServerConfig

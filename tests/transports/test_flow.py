@@ -17,11 +17,10 @@ from dataclasses import dataclass
 
 import pytest
 
-from rwt_transports.flow import (
+from rwt_protocol.runtime.flow import (
     COOL_DOWN_BUDGETS,
     HOLD_REFILL,
     INPUT_STALL_S,
-    ChannelAbilities,
     FlowControl,
     HoldAccount,
     HostCoolDowns,
@@ -30,7 +29,8 @@ from rwt_transports.flow import (
     ReadingWindow,
     send_queue_shrank,
 )
-from rwt_transports.shares import HostPrefixes
+from rwt_transports.admission.shares import HostPrefixes
+from rwt_transports.channel import ChannelAbilities
 
 MiB = 1024 * 1024
 HIGH, LOW = 8 * MiB, 4 * MiB  # a 16 MiB send buffer's watermarks

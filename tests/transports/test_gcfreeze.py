@@ -9,7 +9,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from rwt_transports.gcfreeze import freeze_startup_objects
+from rwt_transports.process.gcfreeze import freeze_startup_objects
 
 
 @pytest.fixture

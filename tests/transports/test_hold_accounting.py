@@ -13,7 +13,7 @@ import math
 
 import pytest
 
-from rwt_transports.flow import (
+from rwt_protocol.runtime.flow import (
     HOLD_REFILL,
     INPUT_STALL_S,
     LINK_ACCOUNTS,
@@ -24,7 +24,7 @@ from rwt_transports.flow import (
     Outlet,
     ReadingWindow,
 )
-from rwt_transports.shares import HostPrefixes
+from rwt_transports.admission.shares import HostPrefixes
 
 MiB = 1024 * 1024
 

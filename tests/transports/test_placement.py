@@ -1,4 +1,4 @@
-"""Topic placement's parts (``rwt_transports.placement``, D57): which first message places a
+"""Topic placement's parts (``rwt_transports.workers.placement``, D57): which first message places a
 connection, which worker owns a topic, and the hand-off of a socket with the bytes read.
 
 The whole path, with roslibpy clients on ``rwt serve --workers 2 --placement topic``, is
@@ -20,11 +20,12 @@ import pytest
 from websockets.frames import Frame, Opcode
 
 from rwt_protocol.runtime.inframes import InFrame
-from rwt_transports import placement
 from rwt_transports.config import ServerConfig
-from rwt_transports.placement import RECORD_LIMIT_BYTES, Placement, placed_topic
+from rwt_transports.rosbridge import first_topic as placed_topic
 from rwt_transports.server import RosbridgeServer
 from rwt_transports.websocket import _whole_messages
+from rwt_transports.workers import placement
+from rwt_transports.workers.placement import RECORD_LIMIT_BYTES, Placement
 from tests.support.cli import invoke_rwt
 from tests.support.rawws import server_frame, upgrade_with
 

@@ -233,7 +233,7 @@ class RtcClient:
         time.sleep(STALL_S)  # noqa: ASYNC251 (the link stalls: this peer's loop stops)
 
     def allowance(self) -> int:
-        from rwt_transports.webrtc import SEND_HIGH_WATER_BYTES  # noqa: PLC0415 (aiortc's)
+        from rwt_transports.webrtc.channel import SEND_HIGH_WATER_BYTES  # noqa: PLC0415 (aiortc's)
 
         return SEND_HIGH_WATER_BYTES + SCTP_WINDOW_BYTES + 2 * BATCH_BYTES
 

@@ -1,12 +1,12 @@
-"""Per-host shares of the connection slots (docs/limits.md, rwt_transports.shares)."""
+"""Per-host shares of the connection slots (docs/limits.md, rwt_transports.admission.shares)."""
 
 from __future__ import annotations
 
 import pytest
 
 from rwt_protocol.errors import ConfigError
+from rwt_transports.admission.shares import HostPrefixes, HostShares
 from rwt_transports.server import RosbridgeServer, ServerConfig
-from rwt_transports.shares import HostPrefixes, HostShares
 
 
 def test_by_default_an_ipv4_address_is_a_host_and_ipv6_counts_by_its_64() -> None:

@@ -27,8 +27,8 @@ from rwt_protocol.auth import AUTH_CHALLENGE_ID, rosauth_op
 from rwt_protocol.codecs.json import op_object
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
-from rwt_transports.udp import UdpOptions
-from rwt_transports.udp_validation import (
+from rwt_transports.udp.transport import UdpOptions
+from rwt_transports.udp.validation import (
     AMPLIFICATION,
     CHALLENGE_BUDGET_BYTES,
     CHALLENGE_TEXT,

@@ -24,7 +24,7 @@ from rwt_protocol.distribution import DISTRIBUTION
 from rwt_protocol.server.compat import Compat
 from rwt_protocol.server.session import SessionConfig
 from rwt_protocol.version import PROTOCOL_VERSION
-from rwt_transports.version_http import installed_version
+from rwt_transports.http.version import installed_version
 from tests.console.test_http import http_get
 from tests.support.clients import Harness, is_op, running_server
 

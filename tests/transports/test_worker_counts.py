@@ -1,4 +1,4 @@
-"""A worker's connection count outlives it (``rwt_transports.worker_counts``); its command line."""
+"""A worker's connection count outlives it (``rwt_transports.workers.counts``); its command line."""
 
 from __future__ import annotations
 
@@ -10,8 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from rwt_transports.worker_counts import ConnectionCountWriter, read_count, reset_count
-from rwt_transports.workers import LISTEN_FD_OPTION, WorkerPlan, child_args, parse_listen_fds
+from rwt_transports.workers.counts import ConnectionCountWriter, read_count, reset_count
+from rwt_transports.workers.supervisor import (
+    LISTEN_FD_OPTION,
+    WorkerPlan,
+    child_args,
+    parse_listen_fds,
+)
 
 
 def test_the_count_a_killed_process_wrote_is_read_after_it(tmp_path: Path) -> None:
@@ -20,7 +25,7 @@ def test_the_count_a_killed_process_wrote_is_read_after_it(tmp_path: Path) -> No
     assert read_count(path) == 0
     code = (
         "import os, signal, sys\n"
-        "from rwt_transports.worker_counts import ConnectionCountWriter\n"
+        "from rwt_transports.workers.counts import ConnectionCountWriter\n"
         "w = ConnectionCountWriter(sys.argv[1])\n"
         "for n in (1, 2, 3, 2, 7): w.write(n)\n"
         "os.kill(os.getpid(), signal.SIGKILL)\n"

@@ -17,7 +17,7 @@ import numpy as np
 
 from rwt import Graph, RosbridgeServer, ServerConfig
 from rwt_graph.media import array_to_image
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.signalling import WebRtcOptions
 
 RED, BLUE = (220, 30, 30), (30, 30, 220)
 

@@ -14,8 +14,8 @@ import pytest
 
 from rwt_protocol.distribution import install_hint
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_signal import WebRtcOptions
-from rwt_transports.webrtc_stacks import stack_refusal, video_native
+from rwt_transports.webrtc.signalling import WebRtcOptions
+from rwt_transports.webrtc.stacks import stack_refusal, video_native
 from tests.browser.conftest import browser  # noqa: F401 (Chromium, one a test process)
 from tests.support.clients import HAS_AIORTC
 

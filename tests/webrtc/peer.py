@@ -23,8 +23,8 @@ from aiortc import (
 
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
-from rwt_transports.webrtc_peers import WebRtcPeers
-from rwt_transports.webrtc_signal import WebRtcSignalling
+from rwt_transports.webrtc.peers import WebRtcPeers
+from rwt_transports.webrtc.signalling import WebRtcSignalling
 
 RECEIVE_S = 10.0
 """Longest wait for one message: a failure, not a measurement."""

@@ -14,16 +14,16 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
 
 from rwt_transports.frontends import FrontEnds
-from rwt_transports.frontends_registry import rosbridge_frontend
-from rwt_transports.webrtc import INBOX_LIMIT_BYTES, DataChannelChannel
-from rwt_transports.webrtc_native import (
+from rwt_transports.rosbridge import rosbridge_frontend
+from rwt_transports.webrtc.channel import INBOX_LIMIT_BYTES, DataChannelChannel
+from rwt_transports.webrtc.native import (
     Inflow,
     NativeDataChannel,
     NativePeerConnection,
     native_missing,
 )
-from rwt_transports.webrtc_peers import channel_refusal
-from rwt_transports.webrtc_sctp import ANSWER_MAX_MESSAGE_SIZE
+from rwt_transports.webrtc.peers import channel_refusal
+from rwt_transports.webrtc.sctp import ANSWER_MAX_MESSAGE_SIZE
 
 pytestmark = pytest.mark.anyio
 

@@ -9,9 +9,9 @@ import re
 
 import pytest
 
-from rwt_transports.webrtc_ice import parse_ice_server, parse_ice_servers
-from rwt_transports.webrtc_native import native_ice_refusal, native_ice_server, native_missing
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.ice import parse_ice_server, parse_ice_servers
+from rwt_transports.webrtc.native import native_ice_refusal, native_ice_server, native_missing
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from tests.support.cli import invoke_rwt
 from tests.webrtc.conftest import NEEDS_AIORTC
 

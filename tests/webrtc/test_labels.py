@@ -27,7 +27,7 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from aiortc import RTCConfiguration, RTCDataChannel, RTCPeerConnection, RTCSessionDescription
 
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from tests.webrtc.peer import RECEIVE_S, offer_sdp, serving
 from tests.webrtc.whep import SDP, post_offer, recvonly_offer
 
@@ -80,6 +80,35 @@ async def test_a_label_picks_its_registered_protocol_and_an_unknown_one_is_refus
     assert "event=channel_refused" in logged and "label='bogus'" in logged
     assert "unknown label (served: rosbridge, rosbridge-lossy, rwt.test.echo)" in logged
     assert "label='rosbridge' reason=another protocol than the session's (echo)" in logged
+
+
+async def test_a_protocol_that_cuts_no_frame_gets_a_large_text_frame_whole(stack: str) -> None:
+    """A text frame above 64 KiB is its front end's to cut (``FrontEnd.split_text``, D74):
+    rosbridge's become ``fragment`` ops; a protocol that cuts none has it sent whole,
+    as aiortc's peer states it takes messages of 256 KiB."""
+    options = replace(OPTIONS, stack=stack)
+    async with serving(ServerConfig(port=0, webrtc=options)) as served:
+        served.server.add_frontend(replace(FRONTEND, labels=(ECHO,)))
+        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+        echo = pc.createDataChannel(ECHO)
+        messages: list[str] = []
+        arrived = anyio.Event()
+        echo.on("message", lambda text: (messages.append(text), arrived.set()))
+        opened = anyio.Event()
+        echo.on("open", opened.set)
+        large = "x" * (100 * 1024)  # over MAX_TEXT_FRAME_BYTES, under the peer's 256 KiB
+        try:
+            async with httpx.AsyncClient(base_url=served.base) as http:
+                reply = await http.post("/webrtc", content=await offer_sdp(pc), headers=SDP)
+            assert reply.status_code == 201, reply.text
+            await pc.setRemoteDescription(RTCSessionDescription(reply.text, "answer"))
+            with anyio.fail_after(RECEIVE_S):
+                await opened.wait()
+                echo.send(large)
+                await arrived.wait()
+            assert messages == [large]  # one message, its text as sent
+        finally:
+            await pc.close()
 
 
 async def test_a_video_only_peer_holds_a_ticket_counted_by_the_connection_budget(

@@ -140,7 +140,7 @@ async def test_through_turn_over_tcp_when_the_robot_may_send_no_udp_to_the_turn_
     assert result["remote"][0] == netns.TURN  # type: ignore[index]  # relayed by coturn
     # the allocation went over TCP: with plain ``turn:`` (UDP) this block leaves no relay
     log = (tmp_path / "robot.log").read_text("utf-8", "replace")
-    if stack == "reactor":  # libwebrtc's chosen pair (webrtc_reactor.py logs it)
+    if stack == "reactor":  # libwebrtc's chosen pair (webrtc/reactor.py logs it)
         assert "event=webrtc_path stack=reactor candidate=relay relay=tcp" in log
     else:  # aioice's log
         assert "TURN allocation created" in log

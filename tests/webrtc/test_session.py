@@ -20,9 +20,9 @@ import anyio.lowlevel
 
 from rwt_graph.graph import Graph
 from rwt_transports.server import RosbridgeServer, ServerConfig
-from rwt_transports.webrtc import MAX_TEXT_FRAME_BYTES, SEND_HIGH_WATER_BYTES
-from rwt_transports.webrtc_sctp import ANSWER_MAX_MESSAGE_SIZE
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.channel import MAX_TEXT_FRAME_BYTES, SEND_HIGH_WATER_BYTES
+from rwt_transports.webrtc.sctp import ANSWER_MAX_MESSAGE_SIZE
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from tests.webrtc.peer import RtcClient, Served, peers_of, rtc_client, serving
 
 pytestmark = pytest.mark.anyio

@@ -15,8 +15,8 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from websockets.asyncio.client import connect
 
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_peers import MAX_CONNECTING
-from rwt_transports.webrtc_signal import MAX_OFFER_BYTES, WebRtcOptions
+from rwt_transports.webrtc.peers import MAX_CONNECTING
+from rwt_transports.webrtc.signalling import MAX_OFFER_BYTES, WebRtcOptions
 from rwt_transports.websocket import WebSocketOptions
 from tests.webrtc.peer import Served, closed_offer, peers_of, rtc_client, serving
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from rwt_transports.webrtc_native import native_missing
+from rwt_transports.webrtc.native import native_missing
 from tests.webrtc.conftest import NEEDS_AIORTC
 
 pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)

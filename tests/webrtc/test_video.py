@@ -33,8 +33,8 @@ from rwt_graph.graph import Graph
 from rwt_protocol.runtime.access import AccessPolicy
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig, rosauth_authenticator
-from rwt_transports.webrtc_signal import MAX_VIDEO_TRACKS, WebRtcOptions
-from rwt_transports.webrtc_video import MAX_VIDEO_STREAMS, VideoTrack
+from rwt_transports.webrtc.signalling import MAX_VIDEO_TRACKS, WebRtcOptions
+from rwt_transports.webrtc.video import MAX_VIDEO_STREAMS, VideoTrack
 from rwt_video.encoders import VideoPacket
 from rwt_video.params import StreamParams
 from rwt_video.rtp import H264PassThrough, RtpEncoder

@@ -25,9 +25,9 @@ pytest.importorskip("aiortc", reason=NEEDS_AIORTC, exc_type=ImportError)
 from aiortc import MediaStreamTrack, RTCConfiguration, RTCPeerConnection, RTCSessionDescription
 
 from rwt_transports.server import ServerConfig
-from rwt_transports.webrtc_native import native_missing
-from rwt_transports.webrtc_native_video import NativeVideoTrack, native_video_plan
-from rwt_transports.webrtc_signal import WebRtcOptions
+from rwt_transports.webrtc.native import native_missing
+from rwt_transports.webrtc.native_video import NativeVideoTrack, native_video_plan
+from rwt_transports.webrtc.signalling import WebRtcOptions
 from rwt_video.rtp import KEYFRAME_MIN_INTERVAL_S
 from tests.webrtc.peer import RECEIVE_S, Served, offer_sdp, serving
 from tests.webrtc.test_video import CAMERA, RED, camera, feedback_target, hub_of

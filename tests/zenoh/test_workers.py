@@ -24,7 +24,7 @@ from websockets.asyncio.client import ClientConnection
 from websockets.asyncio.client import connect as ws_connect
 from websockets.exceptions import ConnectionClosed, InvalidHandshake
 
-from rwt_transports.workers import reserve_port
+from rwt_transports.workers.supervisor import reserve_port
 
 from .processes import Process, python_client, rwt, serving, started
 from .support import endpoint

@@ -82,6 +82,7 @@ class SlowConsumerWatch:
         self._logged_oversized = False
         self._held = False  # a message over the limit was held when last seen
         self._memory_drops = 0  # ``Outbox.dropped_memory`` when last seen
+        self._stale = 0  # ``Outbox.stale`` when last seen
         self._for_memory = False  # the running timer is the memory budget's
 
     def after_push(
@@ -94,6 +95,9 @@ class SlowConsumerWatch:
     ) -> None:
         """The frames of one message were pushed: start an episode if that dropped or went over.
 
+        A message past its lifespan when it came (``Outbox.stale``) is not a drop
+        here: its subscription asked for that (D63), and the peer may read fast.
+
         Args:
             dropped_before: ``Outbox.dropped`` before they were pushed.
             oversized_before: ``Outbox.dropped_oversized`` before they were pushed.
@@ -103,7 +107,10 @@ class SlowConsumerWatch:
         """
         outbox = self.outbox
         oversized = outbox.dropped_oversized > oversized_before
-        others = outbox.dropped - dropped_before > outbox.dropped_oversized - oversized_before
+        stale = outbox.stale - self._stale  # past their lifespan when they came (D63)
+        self._stale = outbox.stale
+        dropped = outbox.dropped - dropped_before - stale
+        others = dropped > outbox.dropped_oversized - oversized_before
         if outbox.held_bytes:
             self._held = True
         if oversized:

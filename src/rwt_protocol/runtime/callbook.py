@@ -32,14 +32,17 @@ class BookedCall:
     Attributes:
         pending: the graph's handle of the call (``forget`` on expiry or close),
             set once the graph took it.
+        on_close: called if the connection closes before the call is settled
+            (a caller in the process that waits for it); None: nobody to tell.
     """
 
-    __slots__ = ("_book", "_timer", "pending", "settled")
+    __slots__ = ("_book", "_timer", "on_close", "pending", "settled")
 
-    def __init__(self, book: CallBook) -> None:
+    def __init__(self, book: CallBook, on_close: Callable[[], None] | None = None) -> None:
         self._book = book
         self._timer: Timer | None = None
         self.pending: _Forgettable | None = None
+        self.on_close = on_close
         self.settled = False
 
     def settle(self) -> bool:
@@ -90,9 +93,12 @@ class CallBook:
         """Whether a new call would pass ``max_pending``."""
         return len(self._open) >= self.max_pending
 
-    def book(self) -> BookedCall:
-        """Book a call (the caller checked ``full``); ``expire_at`` then gives its deadline."""
-        call = BookedCall(self)
+    def book(self, on_close: Callable[[], None] | None = None) -> BookedCall:
+        """Book a call (the caller checked ``full``); ``expire_at`` then gives its deadline.
+
+        ``on_close``: what to tell its caller if the connection closes first.
+        """
+        call = BookedCall(self, on_close)
         self._open.add(call)
         return call
 
@@ -113,3 +119,5 @@ class CallBook:
             call.settle()
             if call.pending is not None:
                 call.pending.forget()
+            if call.on_close is not None:
+                call.on_close()

@@ -1,23 +1,20 @@
 """The per-client rules every protocol's session shares, defined once.
 
 ``SessionBase`` implements the connection runtime's side of ``contract.ServerSession``
-for any protocol: the lifecycle (``lifecycle.State``), the bounded outbox
-(``outbox.Outbox``: bytes, and topic messages by count where the protocol bounds
-them), the slow-consumer watch (``backpressure.SlowConsumerWatch``: the first
-drop of an episode told, a peer that stays over its limit without reading
-closed after ``send_timeout_s``, undroppable frames past the limit close it
-too), the timers, the idle timeout (``idle.IdleWatch``), jobs the transport runs
-off the event loop, containment of a bug (``contain``: in a frame's handler, a
-timer or a job, reported in the protocol's own words), one log line per
-kind of trouble, and the connection's account of the server's memory budget
-(``memory.MemoryAccount``, D44: what its outbox and the messages being prepared
-for it hold, and the slow-consumer rule while the budget is full). rosbridge's
-``session.Session`` and the Foxglove protocol's session are subclasses: each
-adds its ops (``handle_frame``, ``job_done``) and says how its peer is told of a
-problem (``status_frames``), what it holds (``holds_anything``) and what it
-releases (``release``). Limits come
-from one ``rules.ClientRules`` (docs/limits.md, "Per connection"), whichever
-protocol the client speaks.
+for any protocol. It is made of three parts, each a module: the sender
+(``sender.Sender``: the bounded outbox, its slow-consumer watch, the memory budget's
+account, ``send_frames`` and the one hot-path entry ``queue_run``), the jobs it leaves
+to its transport (``jobs.Jobs``) and its life (``lifecycle.Lifecycle``: the states and
+the close it asks for). Here: the timers, the idle timeout (``idle.IdleWatch``), the
+call book (``callbook.CallBook``), the lossy lane of a transport's second way out
+(``lossy.LossyLane``, D36), the access gate, containment of a bug (``contain``: in a
+frame's handler, a timer or a job, reported in the protocol's own words) and one log
+line per kind of trouble. rosbridge's ``session.Session`` and the Foxglove protocol's
+session are subclasses: each adds its ops (``handle_frame``, ``job_done``) and says
+how its peer is told of a problem (``status_frames``), what it holds
+(``holds_anything``) and what it releases (``release``). Limits come from one
+``rules.ClientRules`` (docs/limits.md, "Per connection"), whichever protocol the
+client speaks.
 
 Nothing here awaits, sleeps or reads a clock; ``now`` is monotonic seconds
 given by the caller.
@@ -26,7 +23,6 @@ given by the caller.
 from __future__ import annotations
 
 import logging
-import math
 from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import LimitError, RwtError
@@ -35,20 +31,22 @@ from ..ratelog import EpisodeLog
 from .access import Family, TopicUse, gate
 from .backpressure import SlowConsumerWatch
 from .callbook import CallBook
-from .commands import CloseCode, CloseConnection, Command
 from .idle import IdleWatch
-from .lifecycle import State, advance
-from .lossy import LossyLane
-from .memory import PRESSURE_FLOOR_BYTES
-from .outbox import Outbox, OutFrame, QueueRule
+from .jobs import Jobs
+from .lifecycle import Lifecycle, State
+from .outbox import Outbox, SessionStats
+from .sender import Sender
 from .timers import Timer, TimerQueue
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from ..ports import ClientId, GraphPort
-    from .contract import Job
-    from .memory import MemoryAccount, MemoryBudget
+    from .commands import CloseConnection, Command
+    from .jobs import Job
+    from .lossy import LossyLane
+    from .memory import MemoryBudget
+    from .outbox import OutFrame
     from .rules import ClientRules
 
 __all__ = ["SessionBase"]
@@ -57,7 +55,7 @@ logger = logging.getLogger("rwt.session")
 _episodes = EpisodeLog(logger)  # a peer triggers these at will: one line per episode
 
 
-class SessionBase:
+class SessionBase(Sender, Lifecycle):
     """One client's connection under the server's per-client rules (the module's text).
 
     Args:
@@ -76,14 +74,9 @@ class SessionBase:
             None: its own bounds alone.
     """
 
-    protocol: ClassVar[str] = "rosbridge"
-    """The protocol's name in logs (``event=connect ... protocol=foxglove``)."""
-
-    wakes_each_run: ClassVar[bool] = False
-    """Whether ``queue_run`` wakes the transport after every run, not only when the
-    outbox was empty or is past ``wake_above_bytes`` (``ServerSession``: a protocol may
-    wake more often). A Foxglove client's bursts are gathered into fewer writes so
-    (``rwt_transports.gather``: output during a gathering marks a burst)."""
+    protocol: ClassVar[str]
+    """The protocol's name in logs (``event=connect ... protocol=foxglove``): each
+    protocol's session names its own."""
 
     def __init__(
         self,
@@ -105,16 +98,14 @@ class SessionBase:
         self._outbox = Outbox(config.send_buffer_limit, max_messages=max_messages)
         self._memory = None if memory is None else memory.account(self._memory_pressure)
         self._outbox.account = self._memory
-        self._pending_bytes = 0  # topic messages being made for the outbox (png, ``pngout``)
+        self.stats = SessionStats(self._outbox)
         self._watch = SlowConsumerWatch(self, self._outbox)
         self._commands: list[Command] = []
         self._timers = TimerQueue()
         self.calls = CallBook(self.call_at, config.max_pending_calls, config.call_timeout_s)
         """The calls this client has in flight (every protocol's: ``callbook``)."""
-        self._jobs: list[Job] = []  # input jobs: the reader waits for each
-        self._background: list[Job] = []  # the reader goes on meanwhile
-        self._runs_jobs = False  # set by a transport that runs the jobs (``run_jobs``)
-        self.on_job: Callable[[], None] | None = None
+        self.jobs = Jobs()
+        """The jobs it leaves to its transport, to run off the event loop (``jobs``)."""
         self.on_timer: Callable[[], None] | None = None
         timeout = config.idle_timeout_s
         self._idle = IdleWatch(self, timeout) if timeout else None
@@ -205,115 +196,6 @@ class SessionBase:
         if self._idle is not None:
             self._idle.last_input = now
 
-    def take_job(self) -> Job | None:
-        """The oldest input job (the reader waits for it before its next frame), or None."""
-        return self._jobs.pop(0) if self._jobs else None
-
-    @property
-    def has_jobs(self) -> bool:
-        """Whether input jobs wait: the transport runs them before the next frame."""
-        return bool(self._jobs)
-
-    def take_background_job(self) -> Job | None:
-        """The oldest background job, or None; the reader goes on while it runs."""
-        return self._background.pop(0) if self._background else None
-
-    def add_job(self, job: Job, *, background: bool = False) -> None:
-        """Leave ``job`` to the transport (``run_jobs``); ``background``: input goes on meanwhile.
-
-        Without a transport that runs jobs (a bare session in a test), the caller
-        runs them: ``take_job``/``take_background_job``, then ``finish_job``.
-        """
-        if background:
-            self._background.append(job)
-            if self.on_job is not None:
-                self.on_job()
-        else:
-            self._jobs.append(job)
-
-    def drop_background_job(self, job: Job) -> bool:
-        """Withdraw a waiting background job that sends a topic message, counted as dropped.
-
-        Returns:
-            Whether it was waiting (False: the transport took it already).
-        """
-        try:
-            self._background.remove(job)
-        except ValueError:
-            return False
-        self._outbox.dropped += 1
-        return True
-
-    def run_jobs(self) -> None:
-        """The transport runs the jobs from now on, off its event loop."""
-        self._runs_jobs = True
-
-    def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
-        """Ask the transport to close: queue ``CloseConnection`` after the frames queued so far.
-
-        Later input is ignored and later frames are not queued. Idempotent: only
-        the first request counts.
-
-        Args:
-            code: the close code (WebSocket; logged on other transports).
-            reason: why, for the peer and the log.
-            abort: the peer is not reading (slow consumer): cut without waiting.
-        """
-        if self._state in (State.CLOSING, State.CLOSED):
-            return
-        self._move(State.CLOSING)
-        self._close_request = CloseConnection(code, reason, abort)
-        logger.log(
-            logging.DEBUG if code is CloseCode.NORMAL else logging.INFO,
-            "event=closing client=%s code=%d reason=%r",
-            self._client_id,
-            code,
-            reason,
-        )
-        self._commands.append(self._close_request)
-        self._wake()
-
-    def begin_shutdown(self) -> None:
-        """The server is stopping: ignore further input and release what this client holds.
-
-        Releasing first lets the graph answer callers waiting on this client
-        (D4) while their connections can still send; the server then calls
-        ``request_close(CloseCode.GOING_AWAY, ...)`` on every session.
-        """
-        if self._state is State.CLOSED:
-            return
-        if self._state.takes_input:
-            self._move(State.DRAINING)
-        self.release()
-
-    def close(self) -> None:
-        """The connection is gone: release everything it held in the graph. Idempotent."""
-        if self._state is State.CLOSED:
-            return
-        self._move(State.CLOSED)
-        try:
-            self._timers.clear()
-            self.calls.close()
-            self._jobs.clear()
-            self._background.clear()
-            self._outbox.take()  # what a peer that left never read goes now
-            if self._memory is not None:
-                self._memory.close()
-                if self._memory.budget.sweeper is self:  # another session takes it over
-                    self._memory.budget.sweeper = None
-            self.close_lossy_lane()
-            self.release()
-        finally:  # even if releasing raised, the owner forgets the connection
-            if self._on_closed is not None:
-                self._on_closed(self._client_id)
-
-    def receive_lossy_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
-        """Handle a frame that came on the transport's lossy channel (D36).
-
-        A protocol without a lossy lane handles it as any frame (``receive_frame``).
-        """
-        self.receive_frame(frame, now, binary=binary)
-
     def receive_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
         """Handle one whole incoming frame (``handle_frame``); never raises.
 
@@ -330,6 +212,13 @@ class SessionBase:
         except Exception as exc:  # the protocol's handler let it out: contained here
             self.contain(exc, None)
 
+    def receive_lossy_frame(self, frame: str | bytes, now: float, *, binary: bool = False) -> None:
+        """Handle a frame that came on the transport's lossy channel (D36).
+
+        A protocol without a lossy lane handles it as any frame (``receive_frame``).
+        """
+        self.receive_frame(frame, now, binary=binary)
+
     def finish_job(self, job: Job, result: object, now: float) -> None:
         """Take a job's outcome (``job_done``): what ``job.run()`` returned, or what it raised.
 
@@ -341,77 +230,44 @@ class SessionBase:
         except Exception as exc:
             self.contain(exc, None, source="job")
 
-    def open_lossy_lane(self, max_message_bytes: int, on_output: Callable[[], None]) -> LossyLane:
-        """Open the lane of the transport's lossy channel (D36; ``lossy.LossyLane``).
+    def add_job(self, job: Job, *, background: bool = False) -> None:
+        """Leave ``job`` to the transport (``jobs``); ``background``: input goes on meanwhile.
 
-        Args:
-            max_message_bytes: the largest message the channel carries (0: any size).
-            on_output: called when the lane gets a message while empty.
+        Without a transport that runs jobs (a bare session in a test), the caller
+        runs them: ``jobs.take``/``jobs.take_background``, then ``finish_job``.
+        """
+        self.jobs.add(job, background=background)
+
+    def drop_background_job(self, job: Job) -> bool:
+        """Withdraw a waiting background job that sends a topic message, counted as dropped.
 
         Returns:
-            The lane; the transport takes its messages with ``lossy_frame_to_send``.
+            Whether it was waiting (False: the transport took it already).
         """
-        limit = self._config.send_buffer_limit
-        self._lossy = LossyLane(max_message_bytes, limit, on_output)
-        return self._lossy
+        if not self.jobs.withdraw(job):
+            return False
+        self._outbox.dropped += 1
+        return True
 
-    def close_lossy_lane(self) -> None:
-        """The lossy channel closed: its subscriptions' messages go on the reliable one."""
-        if self._lossy is not None:
-            self._lossy.clear()
-            self._lossy = None
-
-    @property
-    def lossy_lane(self) -> LossyLane | None:
-        """The lane of the transport's lossy channel, while it is open (D36)."""
-        return self._lossy
-
-    def lossy_frame_to_send(self, now: float | None = None) -> OutFrame | None:
-        """Take the lossy lane's message that waited longest, or None (D36).
-
-        ``now``: monotonic seconds; a message past its lifespan is not taken (D63).
-        """
-        lane = self._lossy
-        if lane is None:
-            return None
-        frame = lane.pop(self._now if now is None else now)
-        if frame is not None:
-            self._outbox.taken_frames += 1
-        return frame
-
-    def frames_to_send(
-        self, max_bytes: int | None = None, now: float | None = None
-    ) -> list[OutFrame]:
-        """Take the frames queued for the peer, oldest first.
-
-        Args:
-            max_bytes: take at most about this many payload bytes (at least one
-                frame); None takes every frame. Taking frames counts as progress
-                for the send timeout (D24).
-            now: monotonic seconds of the take: a message past its lifespan is
-                dropped, not taken (``outbox``, D63); None: the session's latest time.
-        """
-        if now is None:
-            now = self._now
-        elif now > self._now:
-            self._now = now
-        frames = self._outbox.take(max_bytes, now)
-        if frames:
+    def close(self) -> None:
+        """The connection is gone: release everything it held in the graph. Idempotent."""
+        if self._state is State.CLOSED:
+            return
+        self._move(State.CLOSED)
+        try:
+            self._timers.clear()
+            self.calls.close()
+            self.jobs.clear()
+            self._outbox.take()  # what a peer that left never read goes now
             if self._memory is not None:
-                self._memory.took(self._now)
-            self._watch.after_take()
-            self.taken(frames)
-            self.sweep_memory()
-        return frames
-
-    def frames_sent(self) -> None:
-        """The transport wrote the frames it took: they are no longer held (D44)."""
-        self._outbox.sent()
-
-    def commands_to_run(self) -> list[Command]:
-        """Take every command queued for the transport."""
-        commands, self._commands = self._commands, []
-        return commands
+                self._memory.close()
+                if self._memory.budget.sweeper is self:  # another session takes it over
+                    self._memory.budget.sweeper = None
+            self.close_lossy_lane()
+            self.release()
+        finally:  # even if releasing raised, the owner forgets the connection
+            if self._on_closed is not None:
+                self._on_closed(self._client_id)
 
     def get_timer(self) -> float | None:
         """The monotonic time at which ``handle_timer`` must next be called, or None."""
@@ -424,12 +280,7 @@ class SessionBase:
             self._timers.run_due(now, self._timer_failed)
             self.sweep_memory()
 
-    # ---- what the transport reads --------------------------------------------------
-
-    @property
-    def close_request(self) -> CloseConnection | None:
-        """The close this session asked for, if any (also while the transport has it)."""
-        return self._close_request
+    # ---- what the transport and the protocol read -----------------------------------
 
     @property
     def now(self) -> float:
@@ -462,258 +313,11 @@ class SessionBase:
         return self._config.hold_budget_s
 
     @property
-    def state(self) -> State:
-        """Where the connection is in its life (``lifecycle.State``, its moves in one table)."""
-        return self._state
-
-    @property
-    def closed(self) -> bool:
-        """Whether ``close`` was called (``state`` is CLOSED)."""
-        return self._state is State.CLOSED
-
-    @property
-    def closing(self) -> bool:
-        """Whether the session stopped taking input (close requested, shutting down, closed)."""
-        return not self._state.takes_input
-
-    @property
     def authenticated(self) -> bool:
         """Whether ops were admitted (always, without an authenticator), even once closing."""
         return self._admitted
 
-    @property
-    def dropped_frames(self) -> int:
-        """Topic messages dropped so far because the peer was too slow (D24)."""
-        return self._outbox.dropped
-
-    @property
-    def expired_messages(self) -> int:
-        """Of ``dropped_frames``, messages a newer one outdated (``Outbox.expired``)."""
-        return self._outbox.expired
-
-    @property
-    def topic_messages(self) -> int:
-        """Topic messages queued for the peer so far, those dropped since included."""
-        return self._outbox.topic_messages
-
-    @property
-    def taken_frames(self) -> int:
-        """Frames the transport took from the queue so far (topic messages and replies)."""
-        return self._outbox.taken_frames
-
-    @property
-    def queued_bytes(self) -> int:
-        """Payload bytes waiting to be taken by the transport."""
-        return self._outbox.queued_bytes
-
-    @property
-    def queued_reply_bytes(self) -> int:
-        """Bytes of queued frames that are never dropped (replies, statuses; D24)."""
-        return self._outbox.undroppable_bytes
-
-    @property
-    def fill_bytes(self) -> int:
-        """How full the outbox is for the watermarks, ``pending_bytes`` included."""
-        return self._outbox.fill_bytes + self._pending_bytes
-
-    @property
-    def pending_bytes(self) -> int:
-        """Bytes of topic messages being made for the outbox off the loop (png, ``pngout``)."""
-        return self._pending_bytes
-
-    @property
-    def outbox(self) -> Outbox:
-        """The bounded queue of frames for the peer (``outbox.Outbox``), to read its counts.
-
-        What a protocol queues goes through ``send_frames`` and ``queue_run``,
-        never into the outbox directly: they apply the slow-consumer rule.
-        """
-        return self._outbox
-
-    @property
-    def memory(self) -> MemoryAccount | None:
-        """This connection's account of the server's memory budget (D44), or None."""
-        return self._memory
-
-    @property
-    def water_marks(self) -> tuple[int, int]:
-        """The outbox's (high, low) watermarks in bytes, for input backpressure (docs/limits.md)."""
-        return self._outbox.high_water_bytes, self._outbox.low_water_bytes
-
     # ---- what the protocol's handlers use ------------------------------------------
-
-    def send_frames(
-        self,
-        frames: Sequence[OutFrame],
-        topic: str | None = None,
-        lifespan: float = 0.0,
-        rule: QueueRule | None = None,
-        expires: float = math.inf,
-    ) -> None:
-        """Queue the frames of one message (its parts stay together, D24) and wake the transport.
-
-        Past the limit, the oldest topic messages go (D24); when undroppable
-        frames alone exceed the limit the peer is not reading at all, and the
-        connection is closed rather than let memory grow. A topic message
-        larger than the limit goes out alone or is dropped with a status naming
-        ``--send-buffer-limit`` (``outbox``, ``backpressure``).
-
-        Args:
-            frames: the frames of one message, shared with other connections (never copied).
-            topic: the topic of a message, as the peer spells it, for the status of a drop.
-            lifespan: seconds of ``topic``'s messages its queue holds at most
-                (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
-            rule: the subscription's QoS for a topic message (``outbox.QueueRule``,
-                D63, D64): its depth and reliability in the queue.
-            expires: with ``rule``, the monotonic time after which the message is
-                never sent (its lifespan's end, D63).
-        """
-        if not self._state.sends:
-            return
-        outbox = self._outbox
-        limit = outbox.limit_bytes
-        if outbox.undroppable_bytes > limit and not all(f.droppable for f in frames):
-            self.request_close(
-                CloseCode.POLICY_VIOLATION,
-                f"send buffer overflow: over {limit} bytes unread",
-                abort=True,
-            )
-            return
-        was_empty = len(outbox) == 0
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.extend(frames, self._now, lifespan, topic or "", rule, expires)
-        self._watch.after_push(dropped, oversized, self._now, frames, topic)
-        if was_empty or outbox.fill_bytes > self.wake_above_bytes:
-            self._wake()  # above the high watermark too: the transport applies backpressure
-        self.sweep_memory()
-
-    def queue_run(
-        self, frames: Sequence[OutFrame], topic: str | None, now: float, lifespan: float = 0.0
-    ) -> None:
-        """Queue a run of topic messages, one whole droppable frame each, and wake once.
-
-        The one hot-path entry of every protocol (docs/architecture.md, "How to
-        add a protocol"): past the limit the oldest topic messages go (D24), the
-        slow-consumer rule sees each drop (``backpressure``), the memory budget
-        is settled once for the run (D44), and the transport is woken when the
-        outbox was empty or is past ``wake_above_bytes``. A message of several
-        frames, or a reply, goes through ``send_frames``.
-
-        Args:
-            frames: the messages, in order; each a droppable frame shared with
-                other connections (never copied).
-            topic: their topic, as the peer spells it, for a drop's status; None
-                for frames of no topic (a protocol's time frames).
-            now: when they were made (monotonic seconds): the session's time moves
-                to it, and a ``lifespan`` counts from it.
-            lifespan: seconds of ``topic``'s messages the outbox holds at most
-                (``MessageEvent.lifespan``, ``outbox``); 0: no such bound.
-        """
-        if not self._sends or not frames:
-            return
-        if now > self._now:  # (``max``, inline: a call less per run and client)
-            self._now = now
-        else:
-            now = self._now
-        outbox = self._outbox
-        wake = self.wakes_each_run or len(outbox) == 0  # (no ``len`` call for those that wake)
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        if lifespan > 0:
-            key = topic or ""
-            for frame in frames:
-                outbox.push_timed(frame, now, lifespan, key)
-                if outbox.dropped != dropped:  # the slow-consumer rule, message by message
-                    self._watch.after_push(dropped, oversized, now, (frame,), topic)
-                    dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        else:
-            push = outbox.push_droppable
-            for frame in frames:
-                push(frame)
-                if outbox.dropped != dropped:
-                    self._watch.after_push(dropped, oversized, now, (frame,), topic)
-                    dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        outbox.settle()  # the memory budget, once for the run (D44)
-        if outbox.dropped != dropped or outbox._held_frames:  # (``held_bytes``, inline)
-            self._watch.after_push(dropped, oversized, now, (), topic)
-        on_output = self._on_output  # (``_wake`` inline: a call less per run and client)
-        if on_output is not None and (wake or outbox.fill_bytes > self.wake_above_bytes):
-            on_output()  # above the high watermark too: the transport applies backpressure
-        self.sweep_memory()
-
-    def shed(self, cap: int, topic: str | None) -> None:
-        """Drop the oldest topic messages down to ``cap`` bytes, under the slow-consumer rule.
-
-        What waits for the peer (``shed_topic_messages``) is cut to ``cap``; the
-        drops start an episode as the outbox's own do (D24), the status naming
-        ``topic``.
-        """
-        outbox = self._outbox
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        self.shed_topic_messages(cap)
-        self._watch.after_push(dropped, oversized, self._now, (), topic)
-
-    def sweep_memory(self) -> None:
-        """While the server's memory budget is full, let it sweep its connections (D44).
-
-        Cheap when it is not (one comparison): every path that queues or takes
-        output calls it. The sweep itself runs at most once per
-        ``memory.PRESSURE_SWEEP_S``, on the session's latest time.
-        """
-        memory = self._memory
-        if memory is None:
-            return
-        budget = memory.budget
-        if budget.used > budget.limit or budget.wanted:  # (``pressed``, inline: every push)
-            budget.sweep(self._now)
-            if budget.sweeper is None and self._state.sends:  # the next, should nothing happen
-                budget.sweeper = self
-                self.call_at(budget.next_sweep, self._sweep_due)
-
-    def _sweep_due(self, now: float) -> None:
-        """This session's timer for the memory budget's next sweep (``sweep_memory``)."""
-        memory = self._memory
-        if memory is not None and memory.budget.sweeper is self:
-            memory.budget.sweeper = None
-            self._now = max(self._now, now)
-            self.sweep_memory()
-
-    def make_room(self, excess: int, now: float) -> None:
-        """Drop the oldest topic messages worth ``excess`` bytes for the memory budget (D44).
-
-        The slow-consumer rule (D24): the drops are counted and the peer told
-        once per episode, replies and statuses stay.
-        """
-        outbox = self._outbox
-        dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        self.shed_topic_messages(max(0, outbox.queued_bytes + self._pending_bytes - excess))
-        if outbox.dropped != dropped:
-            outbox.dropped_memory += outbox.dropped - dropped
-            self._watch.after_push(dropped, oversized, now, (), None)
-
-    def shed_topic_messages(self, cap: int) -> None:
-        """Drop the oldest topic messages until what waits for the peer is at most ``cap`` bytes.
-
-        What waits: the outbox, and what is being made for it (``pending_bytes``);
-        a protocol that makes messages off the loop drops those too.
-        """
-        self._outbox.shed_to(cap)
-
-    def _memory_pressure(self, now: float) -> None:
-        """The server's memory budget is full (its sweep, D44): take from this peer if it lags.
-
-        Stalled, or past its part, it loses its oldest topic messages
-        (``MemoryAccount.excess``, ``make_room``); holding more than
-        ``memory.PRESSURE_FLOOR_BYTES``, it is closed as a slow consumer if it
-        takes nothing for ``--send-timeout`` (``SlowConsumerWatch.memory_pressed``).
-        """
-        account = self._memory
-        if account is None or not self._state.sends:
-            return
-        excess = account.excess(self._outbox.limit_bytes)
-        if excess:
-            self.make_room(excess, now)
-        if account.held > PRESSURE_FLOOR_BYTES:
-            self._watch.memory_pressed(now)
 
     def call_at(self, deadline: float, callback: Callable[[float], None]) -> Timer:
         """Run ``callback(now)`` from ``handle_timer`` once ``now >= deadline``.
@@ -761,15 +365,6 @@ class SessionBase:
         gate(
             self._config.access, family, name, client=self._client_id, op=op, use=use, now=self._now
         )
-
-    def _wake(self) -> None:
-        if self._on_output is not None:
-            self._on_output()
-
-    def _move(self, target: State) -> None:
-        """Change ``state`` along ``lifecycle.TRANSITIONS``; LocalProtocolError otherwise."""
-        self._state = advance(self._state, target)
-        self._sends = self._state.sends
 
     def _log_once(self, kind: str) -> bool:
         """Whether trouble of ``kind`` is new on this connection (so that one line is logged)."""

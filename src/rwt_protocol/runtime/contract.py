@@ -11,40 +11,28 @@ without restating them (docs/architecture.md, "How to add a protocol").
 The contract is sans-IO, after aioquic's connection: frames in with the time they
 arrived (``receive_frame``), frames out within a byte budget (``frames_to_send``),
 commands out (``commands_to_run``), one timer (``get_timer``/``handle_timer``),
-jobs to run off the event loop (``take_job``/``take_background_job``, answered
-with ``finish_job``).
+jobs to run off the event loop (``jobs``, answered with ``finish_job``), and the
+counts and gauges as one value (``stats``). A transport with a second, lossy way
+out asks a session for ``LossySession`` (WebRTC's lossy data channel, D36).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from ..levels import StatusLevel
     from .commands import CloseCode, CloseConnection, Command
+    from .jobs import Job, Jobs
     from .lossy import LossyLane
     from .memory import MemoryAccount
-    from .outbox import OutFrame
+    from .outbox import OutFrame, SessionStats
     from .rules import ClientRules
     from .timers import Timer
 
-__all__ = ["Job", "ServerSession", "WatchedSession"]
-
-
-class Job(Protocol):
-    """Work a session leaves to its transport: run ``run()`` off the event loop.
-
-    ``ready_at`` (monotonic seconds) is when it may start: the sender's own budget.
-    """
-
-    @property
-    def ready_at(self) -> float:
-        """Monotonic seconds before which the job must not run."""
-
-    def run(self) -> object:
-        """Do the work (in a worker thread); its result, or an exception, goes to ``finish_job``."""
+__all__ = ["LossySession", "ServerSession", "WatchedSession"]
 
 
 class WatchedSession(Protocol):
@@ -92,9 +80,13 @@ class ServerSession(Protocol):
     (the transport's pump, ``rwt_transports.pump``) calls after it. In short: ``start``
     first; then, in any order the transport's events come, ``receive_frame``,
     ``handle_timer`` and ``finish_job``, each followed by ``commands_to_run``,
-    ``get_timer`` and, while ``has_jobs``, ``take_job``; ``frames_to_send`` whenever
-    ``on_output`` was called, ``frames_sent`` once written; ``close`` last.
+    ``get_timer`` and, while ``jobs.waiting``, ``jobs.take``; ``frames_to_send``
+    whenever ``on_output`` was called, ``frames_sent`` once written; ``close`` last.
     """
+
+    @property
+    def protocol(self) -> str:
+        """The protocol's name in logs (``event=connect ... protocol=foxglove``)."""
 
     @property
     def client_id(self) -> str:
@@ -108,22 +100,43 @@ class ServerSession(Protocol):
     def hold_budget_s(self) -> float:
         """Seconds this connection, as a reader, may be held for the outboxes it fills."""
 
-    on_job: Callable[[], None] | None
-    """Called when a background job was queued (``take_background_job``); set by the pump."""
+    @property
+    def water_marks(self) -> tuple[int, int]:
+        """The outbox's (high, low) watermarks in bytes (input backpressure)."""
+
+    @property
+    def stats(self) -> SessionStats:
+        """Its counts and gauges (queued, fill, dropped, taken...), read live: one value."""
+
+    @property
+    def jobs(self) -> Jobs:
+        """The jobs it leaves to the transport: take them, run them, ``finish_job``.
+
+        Set ``jobs.transport_runs`` and ``jobs.on_background`` before ``start``.
+        """
+
+    @property
+    def memory(self) -> MemoryAccount | None:
+        """The connection's account of the server's memory budget (D44), or None.
+
+        A transport charges what it holds for the connection beyond the
+        session's own (a WebRTC peer's input not read yet).
+        """
 
     on_timer: Callable[[], None] | None
     """Called when a timer was set (``get_timer`` may say an earlier time); set by the
     pump. None: output's wake-up (``on_output``) is called instead."""
 
     wake_above_bytes: int
-    """Fill (``fill_bytes``) past which every output calls ``on_output``, not only one
-    to an empty outbox: the high watermark, or lower while the pump waits to see the
-    peer fall behind (flow.py, ``WATCH_SHARE``). A protocol may wake more often."""
+    """Fill (``stats.fill_bytes``) past which every output calls ``on_output``, not
+    only one to an empty outbox: the high watermark, or lower while the pump waits to
+    see the peer fall behind (``rwt_protocol.runtime.flow.WATCH_SHARE``). A protocol
+    may wake more often."""
 
     def start(self, now: float) -> None:
         """The transport serves the connection from ``now`` (monotonic seconds).
 
-        Call once, after setting ``on_job`` and ``on_timer`` and before any other method
+        Call once, after setting ``jobs`` and ``on_timer`` and before any other method
         but the properties; then call ``get_timer`` (it may set one, the idle timer) and
         ``frames_to_send`` (a protocol may greet the peer, Foxglove's ``serverInfo``).
         """
@@ -131,31 +144,10 @@ class ServerSession(Protocol):
     def receive_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
         """Handle one whole incoming frame; never raises (a bug in it is contained).
 
-        After it: ``commands_to_run`` (a close it asked for), ``take_job`` while
-        ``has_jobs`` (before the next frame: input jobs keep the frames' order), and
-        ``get_timer`` (it may have set an earlier one). Input that comes once
+        After it: ``commands_to_run`` (a close it asked for), ``jobs.take`` while
+        ``jobs.waiting`` (before the next frame: input jobs keep the frames' order),
+        and ``get_timer`` (it may have set an earlier one). Input that comes once
         ``closing`` is ignored.
-        """
-
-    def receive_lossy_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
-        """Handle one frame that came on the transport's lossy channel (D36).
-
-        Then as after ``receive_frame``.
-        """
-
-    def open_lossy_lane(self, max_message_bytes: int, on_output: Callable[[], None]) -> LossyLane:
-        """Open the lane whose messages go on the transport's lossy channel (D36).
-
-        ``on_output`` is called when the lane has a message: then ``lossy_frame_to_send``.
-        """
-
-    def close_lossy_lane(self) -> None:
-        """The lossy channel closed: its subscriptions' messages go on the reliable one."""
-
-    def lossy_frame_to_send(self, now: float | None = None) -> OutFrame | None:
-        """Take the lossy lane's message that waited longest, or None.
-
-        ``now``: the take's monotonic time; a message past its lifespan is not taken (D63).
         """
 
     def report(self, level: StatusLevel, text: str, op_id: str | int | None = None) -> None:
@@ -208,34 +200,11 @@ class ServerSession(Protocol):
         Call once ``get_timer``'s time has come; then as after ``receive_frame``.
         """
 
-    @property
-    def has_jobs(self) -> bool:
-        """Whether input jobs wait: the transport runs them before the next frame."""
-
-    def take_job(self) -> Job | None:
-        """The oldest input job (the reader waits for it), or None.
-
-        Run it (off the event loop where ``run_jobs`` was called), then ``finish_job``
-        with its outcome, before the next frame is received.
-        """
-
-    def take_background_job(self) -> Job | None:
-        """The oldest background job (the reader goes on meanwhile), or None.
-
-        Call when ``on_job`` was called; run it, then ``finish_job``.
-        """
-
     def finish_job(self, job: Job, result: object, now: float) -> None:
         """Take a job's outcome: what ``run`` returned, or the exception it raised.
 
         Never raises: a failed job, or a bug taking its outcome, is contained. Then as
         after ``receive_frame``.
-        """
-
-    def run_jobs(self) -> None:
-        """The transport runs the jobs from now on (else a session does them at once).
-
-        Call before ``start``, if at all.
         """
 
     def request_close(self, code: CloseCode, reason: str, *, abort: bool = False) -> None:
@@ -261,46 +230,32 @@ class ServerSession(Protocol):
     def closing(self) -> bool:
         """Whether the session stopped taking input."""
 
-    @property
-    def queued_bytes(self) -> int:
-        """Bytes charged for the frames waiting to be taken."""
 
-    @property
-    def queued_reply_bytes(self) -> int:
-        """Bytes of queued frames that are never dropped (replies, statuses, control)."""
+@runtime_checkable
+class LossySession(Protocol):
+    """A session that sends on a transport's second, lossy way out too (D36).
 
-    @property
-    def memory(self) -> MemoryAccount | None:
-        """The connection's account of the server's memory budget (D44), or None.
+    What a transport with a lossy channel (WebRTC's ``rosbridge-lossy``) asks a
+    ``ServerSession`` for; every ``SessionBase`` is one (``lossy.LossyLane``).
+    """
 
-        A transport charges what it holds for the connection beyond the
-        session's own (a WebRTC peer's input not read yet).
+    def receive_lossy_frame(self, frame: bytes | str, now: float, *, binary: bool = False) -> None:
+        """Handle one frame that came on the transport's lossy channel.
+
+        Then as after ``ServerSession.receive_frame``.
         """
 
-    @property
-    def pending_bytes(self) -> int:
-        """Bytes of topic messages being made for the outbox off the loop (png, ``pngout``)."""
+    def open_lossy_lane(self, max_message_bytes: int, on_output: Callable[[], None]) -> LossyLane:
+        """Open the lane whose messages go on the transport's lossy channel.
 
-    @property
-    def fill_bytes(self) -> int:
-        """How full the outbox is for the watermarks, ``pending_bytes`` included."""
+        ``on_output`` is called when the lane has a message: then ``lossy_frame_to_send``.
+        """
 
-    @property
-    def water_marks(self) -> tuple[int, int]:
-        """The outbox's (high, low) watermarks in bytes (input backpressure)."""
+    def close_lossy_lane(self) -> None:
+        """The lossy channel closed: its subscriptions' messages go on the reliable one."""
 
-    @property
-    def topic_messages(self) -> int:
-        """Topic messages queued so far, dropped ones included."""
+    def lossy_frame_to_send(self, now: float | None = None) -> OutFrame | None:
+        """Take the lossy lane's message that waited longest, or None.
 
-    @property
-    def dropped_frames(self) -> int:
-        """Topic messages dropped so far (the peer read too slowly)."""
-
-    @property
-    def expired_messages(self) -> int:
-        """Of ``dropped_frames``, those a newer one outdated (``Outbox.expired``)."""
-
-    @property
-    def taken_frames(self) -> int:
-        """Frames the transport took so far."""
+        ``now``: the take's monotonic time; a message past its lifespan is not taken (D63).
+        """

@@ -2,11 +2,11 @@
 
 A transport with a second, unreliable and unordered channel beside the
 session's reliable one (WebRTC's ``rosbridge-lossy`` data channel, D36,
-docs/webrtc.md) opens a lane on the session (``SessionBase.open_lossy_lane``).
-The topic messages of the subscriptions made on that channel then go here
-rather than to the outbox: one message per topic waits at most, a newer one
-replacing the unsent older one (latest-only), and the transport takes them
-when its channel has room (``pop``). Replies, statuses and every other
+docs/webrtc.md) opens a lane on the session (``contract.LossySession``, which every
+``SessionBase`` is: ``open_lossy_lane``). The topic messages of the subscriptions
+made on that channel then go here rather than to the outbox: one message per topic
+waits at most, a newer one replacing the unsent older one (latest-only), and the
+transport takes them when its channel has room (``pop``). Replies, statuses and every other
 subscription's messages stay on the outbox and the reliable channel.
 
 Bounds (docs/limits.md): a message above ``max_message_bytes`` (the peer's

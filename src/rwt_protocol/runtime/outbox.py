@@ -43,11 +43,13 @@ message of a topic always stays. Messages without a lifespan (a rosbridge
 client's, which input backpressure paces, replies) never expire: the byte
 bound alone applies.
 
-A topic message may also come with a subscription's QoS (protocol 2.1.0, D63-D64;
-``extend``'s ``rule``, a ``QueueRule``, and its ``expires``): it is never taken
-after ``expires`` (the monotonic time its lifespan ends; ``take`` is given the
-time, and such a message reaching the head too late is dropped and counted in
-``dropped`` and ``expired``), at most ``rule.depth`` of its key's messages wait
+A topic message may also come with an end (protocol 2.1.0's lifespan, D63:
+``extend``'s and ``push_timed``'s ``expires``, the monotonic time its lifespan
+ends): it is never taken after it, whatever the session that queued it (``take``
+is given the time; such a message reaching the head too late is dropped and
+counted in ``dropped`` and ``expired``, and one that comes already past it is
+never queued). It may come with a subscription's QoS too (D63-D64; ``extend``'s
+``rule``, a ``QueueRule``): at most ``rule.depth`` of its key's messages wait
 (the oldest go, counted in ``dropped``), and a best-effort one
 (``rule.best_effort``) is dropped first whenever the queue is over its high
 watermark, oldest first, the newest staying: it never holds a publisher back
@@ -75,7 +77,14 @@ if TYPE_CHECKING:
 
     from .memory import MemoryAccount
 
-__all__ = ["FRAME_OVERHEAD_BYTES", "OutFrame", "Outbox", "QueueRule", "water_marks"]
+__all__ = [
+    "FRAME_OVERHEAD_BYTES",
+    "OutFrame",
+    "Outbox",
+    "QueueRule",
+    "SessionStats",
+    "water_marks",
+]
 
 FRAME_OVERHEAD_BYTES = 192
 """Memory a queued frame costs beyond its payload, in bytes, charged against the limit.
@@ -191,6 +200,8 @@ class Outbox:
         dropped: topic messages dropped so far (a fragmented one counts once),
             expired ones included.
         expired: of those, messages dropped for their lifespan (module text).
+        stale: of those, messages past their end when they came, never queued: a
+            lifespan kept, not a slow peer (``backpressure`` tells nobody of them).
         dropped_oversized: of those, messages larger than ``limit_bytes`` that
             came while other topic messages were queued.
         dropped_memory: of those, messages dropped for the server's memory budget
@@ -239,6 +250,7 @@ class Outbox:
         self.topic_messages = 0
         self.taken_frames = 0
         self.expired = 0
+        self.stale = 0
         self._peak = 0  # ``peak_bytes`` before the bytes queued now
         # Once a message with a lifespan came: one entry per queued frame, in step with
         # ``_frames`` (None for a frame without one); by key, its messages none of whose
@@ -344,19 +356,22 @@ class Outbox:
                 holds at most (module text); 0: no such bound.
             key: the message's topic, for ``lifespan`` and ``rule``.
             rule: with ``now``, the subscription's QoS for a topic message (D63, D64).
-            expires: with ``rule``, the monotonic time after which the message is
-                never taken (its lifespan's end).
+            expires: with ``now``, the monotonic time after which the topic message
+                is never taken (its lifespan's end, D63; module text).
         """
-        if frames and frames[0].droppable:
+        droppable = bool(frames) and frames[0].droppable
+        if droppable:
             self.topic_messages += 1
-        if self._held_frames and frames and frames[0].droppable:
+        if self._held_frames and droppable:
             self.dropped += 1  # the queue is full with the held message
             return
-        if rule is not None and now is not None and expires <= now:
+        if droppable and now is not None and expires <= now:
             self.dropped += 1  # past its lifespan already (D63): never queued
             self.expired += 1
+            self.stale += 1
             return
-        timed = self._note_timing(frames, now, lifespan, key, rule is not None)
+        ends = droppable and expires != math.inf
+        timed = self._note_timing(frames, now, lifespan, key, rule is not None or ends)
         message = self._append(frames)
         if timed is not None:
             self._timed_queued(timed, message, rule, expires)
@@ -375,13 +390,16 @@ class Outbox:
     def _timed_queued(
         self, timed: _Timed, cost: int, rule: QueueRule | None, expires: float
     ) -> None:
-        """Note the cost of a message with a lifespan or a rule just queued, and apply them."""
+        """Note the cost of a message with a lifespan, an end or a rule just queued; apply them."""
         timed.cost = cost
+        if expires != math.inf:
+            timed.expires = expires
+            self._expiring += 1
         oldest = self._by_key[timed.key][0]
         if timed.came - oldest.came > oldest.lifespan:
             self._expire(timed.key, timed.came)
         if rule is not None:
-            self._apply_rule(timed, rule, expires)
+            self._apply_rule(timed, rule)
 
     def _append(self, frames: Sequence[OutFrame]) -> int:
         """Queue ``frames`` as they are (``extend``'s first step); return their cost, bytes."""
@@ -417,25 +435,36 @@ class Outbox:
         self._bytes += cost
         self._bound_one(cost)
 
-    def push_timed(self, frame: OutFrame, now: float, lifespan: float, key: str) -> None:
-        """``extend((frame,), now, lifespan, key)`` of one whole topic message: the hot path.
+    def push_timed(
+        self, frame: OutFrame, now: float, lifespan: float, key: str, expires: float = math.inf
+    ) -> None:
+        """``extend((frame,), now, lifespan, key, None, expires)`` of one message: the hot path.
 
-        ``frame`` is droppable with no ``group``; ``lifespan`` is over 0 (seconds).
-        The same rules as ``extend`` in fewer steps while the queue is within its
-        bounds: a ROS 2 burst's per-message and per-subscriber cost
-        (``Session.deliver_many``). The memory budget is charged at the caller's
-        ``settle``, once for a run.
+        ``frame`` is droppable with no ``group``; ``lifespan`` is over 0 (seconds),
+        or ``expires`` is finite (the message's end, module text). The same rules
+        as ``extend`` in fewer steps while the queue is within its bounds: a ROS 2
+        burst's per-message and per-subscriber cost (``Session.deliver_many``), a
+        Foxglove client's run of messages with a lifespan. The memory budget is
+        charged at the caller's ``settle``, once for a run.
         """
         self.topic_messages += 1
         if self._held_frames:
             self.dropped += 1  # the queue is full with the held message
             return
+        if expires <= now:
+            self.dropped += 1  # past its lifespan already (D63): never queued
+            self.expired += 1
+            self.stale += 1
+            return
         times = self._times
         if times is None:
             times = self._times = deque([None] * len(self._frames))
         cost = len(frame.data) + self.frame_overhead_bytes
-        timed = _Timed(now, lifespan, key, 1)
+        timed = _Timed(now, lifespan if lifespan > 0 else math.inf, key, 1)
         timed.cost = cost
+        if expires != math.inf:
+            timed.expires = expires
+            self._expiring += 1
         times.append(timed)
         waiting = self._by_key.get(key)
         if waiting is None:
@@ -654,11 +683,8 @@ class Outbox:
         if times is not None:
             times.extendleft(reversed(kept_times))
 
-    def _apply_rule(self, timed: _Timed, rule: QueueRule, expires: float) -> None:
+    def _apply_rule(self, timed: _Timed, rule: QueueRule) -> None:
         """Apply a subscription's QoS to the message just queued (D63, D64; module text)."""
-        if not math.isinf(expires):
-            timed.expires = expires
-            self._expiring += 1
         if rule.depth:
             waiting = self._by_key[timed.key]
             while len(waiting) > rule.depth:  # the history keeps the newest ``depth``
@@ -825,3 +851,57 @@ class Outbox:
         elif frame.group not in groups:
             groups.add(frame.group)
             self.dropped += 1
+
+
+class SessionStats:
+    """A session's counts and gauges, read live from its outbox (``ServerSession.stats``).
+
+    One value the transport keeps for the connection's life: each read is the
+    count or the gauge at that moment.
+
+    Attributes:
+        pending_bytes: bytes of topic messages being made for the outbox off the
+            loop (png, ``rwt_protocol.server.pngout``), counted in ``fill_bytes``;
+            the protocol that makes them keeps it.
+    """
+
+    __slots__ = ("_outbox", "pending_bytes")
+
+    def __init__(self, outbox: Outbox) -> None:
+        self._outbox = outbox
+        self.pending_bytes = 0
+
+    @property
+    def queued_bytes(self) -> int:
+        """Bytes charged for the frames waiting to be taken."""
+        return self._outbox.queued_bytes
+
+    @property
+    def queued_reply_bytes(self) -> int:
+        """Bytes of queued frames that are never dropped (replies, statuses; D24)."""
+        return self._outbox.undroppable_bytes
+
+    @property
+    def fill_bytes(self) -> int:
+        """How full the outbox is for the watermarks, ``pending_bytes`` included."""
+        return self._outbox.fill_bytes + self.pending_bytes
+
+    @property
+    def topic_messages(self) -> int:
+        """Topic messages queued so far, those dropped since included."""
+        return self._outbox.topic_messages
+
+    @property
+    def dropped_frames(self) -> int:
+        """Topic messages dropped so far because the peer read too slowly (D24)."""
+        return self._outbox.dropped
+
+    @property
+    def expired_messages(self) -> int:
+        """Of ``dropped_frames``, messages a newer one outdated (``Outbox.expired``)."""
+        return self._outbox.expired
+
+    @property
+    def taken_frames(self) -> int:
+        """Frames the transport took so far (topic messages and replies)."""
+        return self._outbox.taken_frames

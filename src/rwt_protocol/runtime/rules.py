@@ -11,6 +11,7 @@ Foxglove protocol takes it as it is, with its own section beside it
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Final
 
@@ -68,6 +69,11 @@ class ClientRules:
             (``idle.IdleWatch``); None: never. A ``GraphServer`` sets it from
             ``ServerConfig.idle_timeout_s`` for WebSocket and TCP connections
             (``--idle-timeout``).
+        qos_lifespan_s: the lifespan of a subscription that asks none (a rosbridge
+            ``subscribe`` whose ``qos`` gives none, a Foxglove client's, an HTTP
+            event stream's, an MCP tool's), seconds: no message older than this is
+            sent to it (``SessionBase.message_end``; ``--qos-lifespan``, D63; inf:
+            none, as rosbridge_suite).
     """
 
     send_buffer_limit: int = 16 * MiB
@@ -80,3 +86,4 @@ class ClientRules:
     max_advertisements: int = 1000
     max_pending_calls: int = 1000
     idle_timeout_s: float | None = None
+    qos_lifespan_s: float = math.inf

@@ -18,8 +18,8 @@ The reply is sent in both modes (D4): rosbridge_suite answers a missing service 
 rosbridge_suite 2.1.0's ``publish``: a ``publish`` carrying ``type`` does not advertise
 the topic (D48; it does from rosbridge_suite 2.6.0, 3.2.0 and 4.1.0,
 docs/reference-behaviour.md §13.3), so one to a topic the graph does not know is refused,
-and no ``qos`` is read (protocol 2.1.0's, which 2.1.0 of the suite does not know: a
-well-formed one changes nothing; the op's model still refuses a malformed one, D1).
+and no ``qos`` is read (protocol 2.1.0's, which 2.1.0 of the suite does not know): it is
+an unknown field, ignored whatever it holds, a malformed one too (D62).
 """
 
 from __future__ import annotations

@@ -67,7 +67,7 @@ if TYPE_CHECKING:
     from ..codecs.png import PendingPng
     from ..ports import ClientId, GraphPort, MessageCodec, MessageEvent
     from ..runtime.access import AccessPolicy  # noqa: F401
-    from ..runtime.contract import Job
+    from ..runtime.jobs import Job
     from ..runtime.memory import MemoryBudget
     from ..runtime.outbox import OutFrame
     from ..runtime.timers import Timer
@@ -87,7 +87,7 @@ class SessionConfig(ClientRules):
     The rules every protocol shares (``send_buffer_limit``, ``send_timeout_s``,
     ``hold_budget_s``, ``access``, ``authenticator``, ``call_timeout_s``,
     ``max_subscriptions``, ``max_advertisements``, ``max_pending_calls``,
-    ``idle_timeout_s``) are ``ClientRules``'s (``rwt_protocol.runtime.rules``),
+    ``idle_timeout_s``, ``qos_lifespan_s``) are ``ClientRules``'s (``rwt_protocol.runtime.rules``),
     taken by the same keywords; the server makes one ``SessionConfig`` and every
     front end reads the part it knows.
 
@@ -119,9 +119,6 @@ class SessionConfig(ClientRules):
         png_inflate_rate: bytes a second of ``png`` images one connection may have
             inflated, after a burst of ``max_message_size`` (``--png-inflate-rate``;
             ``inflate.TokenBucket``): past it, its later ``png`` ops wait.
-        qos_lifespan_s: the lifespan a subscription gets when its ``qos`` gives none
-            (or it has none), seconds: no message older than this is sent to it
-            (``--qos-lifespan``, D63; inf: none, as rosbridge_suite).
         All caps are listed with what a client sees in docs/limits.md.
     """
 
@@ -135,7 +132,6 @@ class SessionConfig(ClientRules):
     max_ids_per_topic: int = 100
     max_pending_goals: int = 1000
     png_inflate_rate: int = 8 * MiB
-    qos_lifespan_s: float = math.inf
 
 
 class Session(SessionBase):
@@ -167,6 +163,8 @@ class Session(SessionBase):
 
     The client end is ``client.ClientSession``: the same ops, from the other end.
     """
+
+    protocol = "rosbridge"
 
     def __init__(
         self,
@@ -205,10 +203,12 @@ class Session(SessionBase):
         )
         self._fragment_timer: Timer | None = None
         self._png_waiting = PngWaiting()  # messages to deflate off the loop (pngout)
+        self.jobs.on_taken = self._png_taken
         self._inflate_budget = TokenBucket(config.png_inflate_rate, max(config.max_message_size, 1))
         self._auth_nonce: str | None = None
         self._input_lossy = False  # the frame being handled came on the lossy channel
         self._oversize_warned: set[str] = set()  # topics told of a message too large for it
+        self._reads_qos = config.compat.reads_qos  # else a ``qos`` is an unknown field (D62)
         if self._config.auth_challenge and self._state is State.AUTHENTICATING:
             self._auth_nonce = auth_nonce
             if auth_nonce is None:
@@ -252,6 +252,9 @@ class Session(SessionBase):
             else:
                 obj = decode_json(frame)
             op_id = peek_id(obj)
+            if not self._reads_qos and isinstance(obj, dict) and "qos" in obj:
+                # rosbridge_suite 2.1.0 knows no qos: whatever it holds, it is not read (D62)
+                obj = {key: value for key, value in obj.items() if key != "qos"}
             op = parse_object(obj)
             op_name = op.op
             if self._state is State.OPEN:
@@ -286,17 +289,17 @@ class Session(SessionBase):
         """Inflate a ``png`` op's image, then handle its text as a frame (D20).
 
         The inflated bytes are charged to this connection's budget
-        (``png_inflate_rate``). With a transport that called ``run_jobs``, the work
-        becomes a job (``take_job``) that waits for the budget and runs off the
-        event loop; the transport reads no further frame of this connection
-        until it is done (``finish_job``), so ops keep their order. Without one
-        (a bare session), it is inflated at once.
+        (``png_inflate_rate``). With a transport that runs the jobs
+        (``jobs.transport_runs``), the work becomes a job (``jobs.take``) that waits
+        for the budget and runs off the event loop; the transport reads no further
+        frame of this connection until it is done (``finish_job``), so ops keep their
+        order. Without one (a bare session), it is inflated at once.
 
         Raises:
             RemoteProtocolError: the PNG is corrupt (inflated at once only).
         """
         wait = self._inflate_budget.charge(png.pixel_bytes, now)
-        if not self._runs_jobs:
+        if not self.jobs.transport_runs:
             self.receive_frame(png.inflate(), now)
             return
         self.add_job(InflateJob(png, op_id, now + wait))
@@ -307,8 +310,8 @@ class Session(SessionBase):
         ``finish_job`` (``SessionBase``) calls it and contains what it raises.
 
         Args:
-            job: what ``take_job`` gave (an ``InflateJob``), or
-                ``take_background_job`` (a ``PngPublishJob``).
+            job: what ``jobs.take`` gave (an ``InflateJob``), or
+                ``jobs.take_background`` (a ``PngPublishJob``).
             result: what ``job.run()`` returned (the inflated text, the
                 ``png`` frames), or the exception it raised.
             now: monotonic seconds.
@@ -353,17 +356,15 @@ class Session(SessionBase):
             self._holdings.clear()
             self._fragments.clear()
             self._png_waiting.clear()
-            self._png_charge(-self._pending_bytes)
+            self._png_charge(-self.stats.pending_bytes)
         super().close()
 
-    def take_background_job(self) -> Job | None:
-        """The oldest background job (a ``png`` message to deflate), or None."""
-        job = super().take_background_job()
+    def _png_taken(self, job: Job) -> None:
+        """The transport took a background job: a ``png`` message waits no more."""
         if isinstance(job, PngPublishJob):
             before = self._png_waiting.bytes
             self._png_waiting.taken(job)
             self._png_charge(self._png_waiting.bytes - before)
-        return job
 
     def holds_anything(self) -> bool:
         """Whether it holds something in the graph, or a message still arriving (idle rule)."""
@@ -526,7 +527,7 @@ class Session(SessionBase):
         self._now = max(self._now, event.now)
         params = subscription.params
         lossy = subscription.lossy and self._lossy is not None
-        if params.compression is Compression.PNG and self._runs_jobs:
+        if params.compression is Compression.PNG and self.jobs.transport_runs:
             self._deflate_later(subscription, event, None if lossy else params.fragment_size)
             return
         frames = safe_publish_frames(
@@ -553,7 +554,7 @@ class Session(SessionBase):
         self._now = max(self._now, event.now)
         params = subscription.params
         lossy = subscription.lossy and self._lossy is not None
-        if params.compression is Compression.PNG and self._runs_jobs:
+        if params.compression is Compression.PNG and self.jobs.transport_runs:
             self._deflate_later(subscription, event, None if lossy else params.fragment_size)
             return
         frames = safe_publish_frames(
@@ -562,7 +563,7 @@ class Session(SessionBase):
             params.compression,
             None if lossy else params.fragment_size,
         )
-        expires = min(event.expires, event.now + subscription.lifespan_s)
+        expires = self.message_end(event, subscription.lifespan_s)
         if isinstance(frames, EncodeFailure):
             self._encode_failed(subscription, frames, params.compression)
         elif lossy:
@@ -591,7 +592,7 @@ class Session(SessionBase):
         """
         params = subscription.params
         compression = params.compression
-        if (compression is Compression.PNG and self._runs_jobs) or (
+        if (compression is Compression.PNG and self.jobs.transport_runs) or (
             subscription.lossy and self._lossy is not None
         ):
             for event in events:
@@ -679,7 +680,7 @@ class Session(SessionBase):
             excess = memory.excess(self.outbox.limit_bytes)
             if excess:
                 self.make_room(excess, self._now)
-        if self.fill_bytes > self.wake_above_bytes:
+        if self.stats.fill_bytes > self.wake_above_bytes:
             self._wake()  # the transport holds the publisher (input backpressure)
         self.sweep_memory()
 
@@ -687,7 +688,7 @@ class Session(SessionBase):
         """Keep the outbox and the png messages waiting within ``--send-buffer-limit`` (D24)."""
         outbox = self.outbox
         limit = outbox.limit_bytes
-        if outbox.queued_bytes + self._pending_bytes > limit:
+        if outbox.queued_bytes + self.stats.pending_bytes > limit:
             self.shed(limit, topic)
 
     def shed_topic_messages(self, cap: int) -> None:
@@ -705,7 +706,7 @@ class Session(SessionBase):
 
     def _png_charge(self, delta: int) -> None:
         """``delta`` bytes more (or fewer) wait for png: in the fill and the memory budget."""
-        self._pending_bytes += delta
+        self.stats.pending_bytes += delta
         if self._memory is not None and delta:
             self._memory.charge(delta)
 
@@ -721,14 +722,12 @@ class Session(SessionBase):
             self._encode_failed(subscription, result, Compression.PNG)
             return
         event, rule = job.event, subscription.rule
-        expires = (
-            math.inf if rule is None else min(event.expires, event.now + subscription.lifespan_s)
-        )
+        expires = self.message_end(event, subscription.lifespan_s)
         if subscription.lossy:
             self._queue_lossy(subscription, result, expires)  # type: ignore[arg-type]
         else:
             self.send_frames(result, subscription.spelling, 0.0, rule, expires)  # type: ignore[arg-type]
-            if self._pending_bytes:  # its png op may be larger than what it was charged
+            if self.stats.pending_bytes:  # its png op may be larger than what it was charged
                 self._bound_waiting(subscription.spelling)
 
     def _encode_failed(

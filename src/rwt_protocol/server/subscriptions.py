@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING
 
 from ..ops.base import Compression
 from ..runtime.backpressure import lost_text
-from ..runtime.timers import Timer
+from .deadline import DEADLINE_CHECK_S, DeadlineWatch, Schedule
 from .subscription_qos import SubscriptionQos
 
 if TYPE_CHECKING:
@@ -52,6 +52,7 @@ if TYPE_CHECKING:
     from ..ops import Subscribe
     from ..ports import MessageEvent
     from ..qos import QosProfile
+    from ..runtime.timers import Timer
 
 __all__ = [
     "DEADLINE_CHECK_S",
@@ -60,11 +61,6 @@ __all__ = [
     "TopicSubscription",
     "merge",
 ]
-
-DEADLINE_CHECK_S = 0.1
-"""The shortest time between two checks of a subscription's deadline, seconds (D65):
-a deadline of 1 ms costs a timer every 100 ms at most, not a thousand a second: a
-client's 1,000 subscriptions (``--max-subscriptions``) cost 10,000 checks a second at most."""
 
 _STRENGTH: dict[Compression, int] = {
     Compression.NONE: 0,
@@ -75,9 +71,6 @@ _STRENGTH: dict[Compression, int] = {
 
 SubscriptionKey = str | int | None
 """A subscription id as sent, or None for a subscription without id."""
-
-Schedule = Callable[[float, Callable[[float], None]], Timer]
-"""Runs a callback with ``now`` at a monotonic deadline (``Session.call_at``)."""
 
 Warn = Callable[["TopicSubscription", str], None]
 """Tells the client of a subscription's QoS event (a warning status)."""
@@ -181,8 +174,7 @@ class TopicSubscription:
         self.lifespan_s = self.qos.lifespan_s
         self._latest: Callable[[], float] | None = None  # the topic's latest message time
         self._since = 0.0  # when its deadline started counting (monotonic seconds)
-        self._deadline_timer: Timer | None = None
-        self._missed_after: float | None = None  # the last message before a missed deadline
+        self._deadline = DeadlineWatch(schedule, self._deadline_missed)
         self._qos_changed()  # the server's default lifespan may give it a rule already
 
     def add(self, request: Subscribe, now: float, *, lossy: bool = False) -> None:
@@ -226,9 +218,7 @@ class TopicSubscription:
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
-        if self._deadline_timer is not None:
-            self._deadline_timer.cancel()
-            self._deadline_timer = None
+        self._deadline.cancel()
         self._latest = None
 
     def on_qos_offered(
@@ -258,32 +248,15 @@ class TopicSubscription:
 
     def _watch_deadline(self) -> None:
         """(Re)arm the deadline's check for the current deadline and latest message (D65)."""
-        if self._deadline_timer is not None:
-            self._deadline_timer.cancel()
-            self._deadline_timer = None
-        deadline = self.qos.deadline_s
-        if math.isinf(deadline) or self._latest is None or not self.requests:
-            return
-        last = max(self._latest(), self._since)
-        self._deadline_timer = self._schedule(
-            max(last + deadline, self._since + DEADLINE_CHECK_S), self._deadline_due
-        )
-
-    def _deadline_due(self, now: float) -> None:
-        """Warn once if no message came within the deadline; check again (D65)."""
-        self._deadline_timer = None
-        deadline, latest = self.qos.deadline_s, self._latest
-        if math.isinf(deadline) or latest is None or not self.requests:
-            return
-        last = max(latest(), self._since)
-        if now - last >= deadline:
-            if self._missed_after != last and self._qos_warn is not None:
-                self._missed_after = last  # one warning per episode: until a message comes
-                self._qos_warn(self, self.qos.deadline_text(self.spelling))
-            due = now + max(deadline, DEADLINE_CHECK_S)
+        if self._latest is None or not self.requests:
+            self._deadline.cancel()
         else:
-            due = max(last + deadline, now + DEADLINE_CHECK_S)
-        self._deadline_timer = self._schedule(due, self._deadline_due)
+            self._deadline.arm(self.qos.deadline_s, self._latest, self._since)
+
+    def _deadline_missed(self) -> None:
+        """The topic missed the deadline: warn the client, once per episode (D65)."""
+        if self._qos_warn is not None and self.requests:
+            self._qos_warn(self, self.qos.deadline_text(self.spelling))
 
     def on_message(self, event: MessageEvent) -> None:
         """Receive one message from the graph (``TopicSink``); throttle and queue it (D12)."""

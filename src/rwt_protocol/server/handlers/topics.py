@@ -10,6 +10,7 @@ from ...levels import StatusLevel
 from ...names import resolve_name
 from ...qos import MAX_DEPTH
 from ...shortcuts import enabled
+from ..publisher_qos import PublisherQos
 from ..subscriptions import BatchTopicSubscription, TopicSubscription
 
 if TYPE_CHECKING:
@@ -44,7 +45,7 @@ def advertise(session: HandlerContext, op: Advertise, now: float) -> None:
         GraphError: bad or unknown type, or the topic has another type.
         LimitError: past ``--max-advertisements`` or ``max_ids_per_topic``.
     """
-    _register(session, "advertise", op.topic, op.type, op.id, latch=op.latch, qos=op.qos)
+    _register(session, "advertise", op.topic, op.type, op.id, now, latch=op.latch, qos=op.qos)
 
 
 def _register(
@@ -53,6 +54,7 @@ def _register(
     spelling: str,
     type_name: str,
     op_id: str | int | None,
+    now: float,
     *,
     latch: bool,
     qos: Qos | None = None,
@@ -61,8 +63,10 @@ def _register(
 
     What ``advertise`` does, and a ``publish`` with ``type`` the client has not
     advertised (D48): the caps, the graph's checks, the id kept for ``unadvertise``.
-    With ``qos``, ``latch`` is not read (spec 4.3.1 of 2.1.0) and the client is
-    warned when the topic keeps another registration's QoS (D62).
+    With ``qos``, ``latch`` is not read (spec 4.3.1 of 2.1.0), the client is
+    warned when the topic keeps another registration's QoS (D62), and of what
+    concerns its offer from ``now`` on (``publisher_qos``: a subscription it
+    cannot meet, D64; a missed deadline, D65).
 
     Raises:
         GraphError: bad or unknown type, or the topic has another type.
@@ -76,14 +80,30 @@ def _register(
     elif op_id not in ids:
         session.check_cap(len(ids), session.config.max_ids_per_topic, f"ids on {spelling}")
     profile = None if qos is None or not session.config.compat.reads_qos else qos.profile()
+    watch = None
+    if profile is not None:
+        warn = functools.partial(_warn_publisher, session, op_name, op_id)
+        watch = PublisherQos(spelling, profile, session.call_at, warn, now)
     canonical = session.graph.advertise(
-        session.client_id, spelling, type_name, latch=latch and profile is None, qos=profile
+        session.client_id,
+        spelling,
+        type_name,
+        latch=latch and profile is None,
+        qos=profile,
+        watch=watch,
     )
     holdings.add_advertisement(topic, op_id)
     report_type_warning(session, op_name, canonical, op_id)
     if profile is not None:
         _report_offer(session, op_name, spelling, profile, op_id)
     session.report(StatusLevel.INFO, f"{op_name}: {spelling} advertised as {canonical}", op_id)
+
+
+def _warn_publisher(
+    session: HandlerContext, op_name: str, op_id: str | int | None, text: str
+) -> None:
+    """A warning to the client of its offer (``PublisherQos``), with its registration's id."""
+    session.report(StatusLevel.WARNING, f"{op_name}: {text}", op_id)
 
 
 def _report_offer(
@@ -163,7 +183,7 @@ def publish(session: HandlerContext, op: PublishView, now: float) -> None:
         LimitError: the advertisement is past ``--max-advertisements``.
     """
     if op.type is not None and _advertises(session, op.topic):
-        _register(session, "publish", op.topic, op.type, op.id, latch=op.latch, qos=op.qos)
+        _register(session, "publish", op.topic, op.type, op.id, now, latch=op.latch, qos=op.qos)
 
     def noted(note: PublishNote) -> None:
         if note.first:  # a stream of commands: one warning per episode
