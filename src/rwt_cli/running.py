@@ -47,14 +47,13 @@ async def run_server(
     ros2: Ros2Options | None = None,
     *,
     heap_trim_s: float = 0.0,
-    heap_keep: int = 0,
 ) -> None:
     """Serve ``server`` (and ``video``, ``jobs``, the links) until a signal or its end.
 
     stdout (stderr with ``--stdio``) gets a ``listening on URL`` line a listener,
     then ``video on URL``. With ``heap_trim_s``, the process's free heap is given
-    back every that many seconds, the top of the heap keeping ``heap_keep`` bytes
-    (``--heap-trim``, ``--heap-keep``: ``rwt_transports.process.allocator.keep_trimmed``).
+    back every that many seconds (``--heap-trim``:
+    ``rwt_transports.process.allocator.keep_trimmed``).
 
     Raises:
         ListenError: a listener, or the video server, could not bind its address.
@@ -68,7 +67,7 @@ async def run_server(
     ):
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
         if heap_trim_s > 0:
-            tg.start_soon(keep_trimmed, heap_trim_s, heap_keep)
+            tg.start_soon(keep_trimmed, heap_trim_s)
         if jobs is not None:  # a bag to play is checked before anything is served
             await tg.start(jobs.run)
         video_url = None if video is None else await _start_video(tg, server, video)

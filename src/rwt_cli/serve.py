@@ -427,11 +427,7 @@ def _run(
     process: Process,
 ) -> None:
     """Serve until a signal; a start-up error is one line (exit 1)."""
-    serve = partial(
-        run_server,
-        heap_trim_s=process.heap_trim,
-        heap_keep=process.heap_keep * 1024 * 1024,
-    )
+    serve = partial(run_server, heap_trim_s=process.heap_trim)
     with one_line_errors("serve", STARTUP_ERRORS):
         anyio.run(
             serve, server, video, jobs, zenoh, ros2, backend_options={"use_uvloop": process.uvloop}

@@ -764,8 +764,8 @@ class Process:
         float,
         typer.Option(
             min=0,
-            help="Seconds between two returns of freed heap to the system (glibc's "
-            "malloc_trim; the heap's top keeps --heap-keep); 0: never.",
+            help="Seconds between two returns of all freed heap to the system (glibc's "
+            "malloc_trim; --heap-keep's too, once a period); 0: never.",
         ),
     ] = HEAP_TRIM_S
     raise_fd_limit: Annotated[

@@ -17,7 +17,9 @@ Fast DDS's, anyio's workers'), stay in the process. Under hours of clients comin
 and going that free heap grew the server's RSS by tens of MB an hour while the
 memory in use stayed flat (docs/benchmarks.md, B26). ``trim_heap`` gives it back
 (glibc's ``malloc_trim``), and ``keep_trimmed`` does that every ``--heap-trim``
-seconds (decisions.md D75): at most one large message a period then finds its
+seconds (decisions.md D75), the free top of the heap that ``--heap-keep`` keeps
+included: kept at the top, it let the heap's high-water mark stay resident as
+fragmentation crept it upward. At most one large message a period then finds its
 buffers' pages given back and faults them in again.
 """
 
@@ -115,21 +117,22 @@ def trim_heap(keep: int) -> bool:
     return bool(malloc_trim(keep))
 
 
-async def keep_trimmed(period_s: float, keep: int) -> None:
-    """Trim the heap (``trim_heap``) every ``period_s`` seconds, on a worker thread, forever.
+async def keep_trimmed(period_s: float) -> None:
+    """Trim all free heap (``trim_heap(0)``) every ``period_s`` seconds, on a worker thread.
 
-    Returns at once on a system without glibc's ``malloc_trim`` (nothing to do).
+    Runs until cancelled; returns at once on a system without glibc's
+    ``malloc_trim`` (nothing to do). The top of the heap keeps nothing: what
+    ``--heap-keep`` holds for large messages is given back once a period too (D75).
 
     Args:
         period_s: seconds between two trims (``--heap-trim``, ``HEAP_TRIM_S``; D75).
-        keep: bytes the top of the main heap keeps (``--heap-keep``).
     """
     if _libc_function("malloc_trim") is None:
         return
     while True:
         await anyio.sleep(period_s)
         before = _rss()
-        given, took = await anyio.to_thread.run_sync(_timed_trim, keep)
+        given, took = await anyio.to_thread.run_sync(_timed_trim, 0)
         logger.debug(
             "event=heap_trim given_back=%s rss_mb=%.1f->%.1f took_ms=%.2f",
             given,
