@@ -13,14 +13,11 @@ process for the next message (the price: that much RSS may stay after a burst).
 
 ``free`` only gives back the top of the heap, and only above the trim threshold:
 freed memory between live blocks, and the heaps of other threads' arenas (rclpy's,
-Fast DDS's, anyio's workers'), stay in the process. Under hours of clients coming
-and going that free heap grew the server's RSS by tens of MB an hour while the
-memory in use stayed flat (docs/benchmarks.md, B26). ``trim_heap`` gives it back
-(glibc's ``malloc_trim``), and ``keep_trimmed`` does that every ``--heap-trim``
-seconds (decisions.md D75), the free top of the heap that ``--heap-keep`` keeps
-included: kept at the top, it let the heap's high-water mark stay resident as
-fragmentation crept it upward. At most one large message a period then finds its
-buffers' pages given back and faults them in again.
+Fast DDS's, anyio's workers'), stay in the process: after a burst the RSS stays near
+its peak. ``trim_heap`` gives them back (glibc's ``malloc_trim``), and ``keep_trimmed``
+does that every ``--heap-trim`` seconds (decisions.md D75), the free top of the heap
+that ``--heap-keep`` keeps included (resident once touched). At most one large message
+a period then finds its buffers' pages given back and faults them in again.
 """
 
 from __future__ import annotations
