@@ -18,6 +18,7 @@ import anyio
 
 from rwt_bag.errors import BagError
 from rwt_transports.listen import ListenError
+from rwt_transports.process.allocator import keep_trimmed
 
 from .ros2_link import linked_ros2
 from .zenoh_link import linked
@@ -44,11 +45,15 @@ async def run_server(
     jobs: BagJobs | None = None,
     zenoh: ZenohOptions | None = None,
     ros2: Ros2Options | None = None,
+    *,
+    heap_trim_s: float = 0.0,
 ) -> None:
     """Serve ``server`` (and ``video``, ``jobs``, the links) until a signal or its end.
 
     stdout (stderr with ``--stdio``) gets a ``listening on URL`` line a listener,
-    then ``video on URL``.
+    then ``video on URL``. With ``heap_trim_s``, the process's free heap is given
+    back every that many seconds (``--heap-trim``:
+    ``rwt_transports.process.allocator.keep_trimmed``).
 
     Raises:
         ListenError: a listener, or the video server, could not bind its address.
@@ -61,6 +66,8 @@ async def run_server(
         anyio.create_task_group() as tg,
     ):
         tg.start_soon(_stop_on_signal, server, tg.cancel_scope)
+        if heap_trim_s > 0:
+            tg.start_soon(keep_trimmed, heap_trim_s)
         if jobs is not None:  # a bag to play is checked before anything is served
             await tg.start(jobs.run)
         video_url = None if video is None else await _start_video(tg, server, video)

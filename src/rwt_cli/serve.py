@@ -15,6 +15,7 @@ import logging
 import math
 import sys
 from dataclasses import replace
+from functools import partial
 from typing import TYPE_CHECKING, NoReturn
 
 import anyio
@@ -147,7 +148,7 @@ def serve(options: ServeOptions) -> None:
     video = _video_config(options, server.console, tokens)
     jobs = _bag_jobs(graph, options.record, options.play)
     freeze_startup_objects()
-    _run(server, video, jobs, zenoh_link, ros2_link, uvloop=options.process.uvloop)
+    _run(server, video, jobs, zenoh_link, ros2_link, options.process)
 
 
 def _check_listeners(options: ServeOptions) -> None:
@@ -423,13 +424,13 @@ def _run(
     jobs: BagJobs | None,
     zenoh: ZenohOptions | None,
     ros2: Ros2Options | None,
-    *,
-    uvloop: bool,
+    process: Process,
 ) -> None:
     """Serve until a signal; a start-up error is one line (exit 1)."""
+    serve = partial(run_server, heap_trim_s=process.heap_trim)
     with one_line_errors("serve", STARTUP_ERRORS):
         anyio.run(
-            run_server, server, video, jobs, zenoh, ros2, backend_options={"use_uvloop": uvloop}
+            serve, server, video, jobs, zenoh, ros2, backend_options={"use_uvloop": process.uvloop}
         )
 
 

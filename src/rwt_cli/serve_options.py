@@ -22,7 +22,7 @@ from rwt_protocol.runtime.memory import DEFAULT_MEMORY_BUDGET
 from rwt_protocol.runtime.rules import HOLD_BUDGET_S
 from rwt_protocol.server.compat import Compat
 from rwt_transports.admission.shares import DEFAULT_PREFIX_V4, DEFAULT_PREFIX_V6
-from rwt_transports.process.allocator import HEAP_KEEP_MIB
+from rwt_transports.process.allocator import HEAP_KEEP_MIB, HEAP_TRIM_S
 from rwt_zenoh.limits import MAX_OUTBOX_BYTES, MAX_QUEUED_BYTES, MAX_REMOTE_ENTITIES
 
 from .bag_options import (
@@ -760,6 +760,14 @@ class Process:
             "system default, which maps and unmaps every buffer of a large message.",
         ),
     ] = HEAP_KEEP_MIB
+    heap_trim: Annotated[
+        float,
+        typer.Option(
+            min=0,
+            help="Seconds between two returns of all freed heap to the system (glibc's "
+            "malloc_trim; --heap-keep's too, once a period); 0: never.",
+        ),
+    ] = HEAP_TRIM_S
     raise_fd_limit: Annotated[
         bool, typer.Option(help="Raise the soft RLIMIT_NOFILE to the hard limit at start-up.")
     ] = True
