@@ -11,7 +11,13 @@ environment: ``benchmarks/churn.py``). It imports rclpy, never rwt.
   ``std_msgs/msg/String`` on ``OUT`` (a rotating pool of names), calls the robot's
   ``/soak/set_bool`` through the link, and is destroyed with all it held. So the link
   mirrors a node, a subscription, a publisher and a service client appearing and going,
-  each cycle.
+  each cycle. The node starts without rcl's ``~/get_type_description`` service
+  (``NO_TYPE_DESCRIPTION``): rclpy 9 (ROS 2 Kilted) leaves that service in the
+  middleware when it destroys the node, for as long as its process lives, and every
+  participant of the domain, ``rwt serve --ros2`` as much as a bare rclpy node, keeps
+  its discovery data (about 7.7 KB of native heap per node that came and went; see
+  docs/benchmarks.md, B26). The soak measures what rwt keeps, not what this process
+  leaves behind.
 
 ``--steps`` keeps some of a cycle's steps (``sub``, ``pub``, ``call``; ``node``: the node
 alone), to find which of them costs memory. ``ready`` once the talker runs; then one
@@ -28,7 +34,7 @@ import threading
 import time
 from typing import Any
 
-__all__ = ["CHATTER", "CHATTER_HZ", "OUT", "main"]
+__all__ = ["CHATTER", "CHATTER_HZ", "NO_TYPE_DESCRIPTION", "OUT", "main"]
 
 CHATTER = "/soak/r2/chatter"
 CHATTER_HZ = 10.0
@@ -47,10 +53,17 @@ def _spin_until(executor: Any, done: threading.Event, within: float, what: str) 
         executor.spin_once(timeout_sec=0.05)
 
 
+NO_TYPE_DESCRIPTION = "start_type_description_service"
+"""The rcl parameter (read-only, so set as an override when the node is made) that, False,
+starts a node without its ``~/get_type_description`` service (the module's text)."""
+
+
 def _cycle(rclpy: Any, executor: Any, n: int, steps: set[str]) -> None:
+    from rclpy.parameter import Parameter  # noqa: PLC0415 (rclpy: in the peer's process only)
     from std_msgs.msg import String  # noqa: PLC0415 (rclpy's messages: after rclpy.init)
 
-    node = rclpy.create_node(f"soak_r2_{n}")
+    overrides = [Parameter(NO_TYPE_DESCRIPTION, value=False)]
+    node = rclpy.create_node(f"soak_r2_{n}", parameter_overrides=overrides)
     executor.add_node(node)
     try:
         if "sub" in steps:
