@@ -146,6 +146,10 @@ class _ClientChannel:
     encoding: str
 
 
+_NO_END: Final = math.inf
+"""A run of messages without an end (D63): ``queue_run``'s ``expires`` default."""
+
+
 class _TopicSink:
     """The graph's subscriber of one topic for this client: queues message data."""
 
@@ -184,6 +188,7 @@ class _TopicSink:
         self,
         events: list[MessageEvent] | tuple[MessageEvent, ...],
         subscriptions: list[int] | tuple[int, ...] | None = None,
+        end: float = _NO_END,
     ) -> None:
         """Queue each of ``events``, in order, as message data for ``subscriptions``; never raises.
 
@@ -198,33 +203,26 @@ class _TopicSink:
         and log time, and every client subscribed with that id queues the same
         one (in ``event.memos``). Here, not in the session, and in one body:
         two Python calls less per message of a burst. Messages with a lifespan
-        (their topic's, or ``--qos-lifespan``) are queued in runs of one end
-        (``SessionBase.message_end``, D63): never sent after it.
+        (their topic's, or ``--qos-lifespan``) come back here in runs of one
+        ``end`` (``SessionBase.message_end``, D63): never sent after it.
         """
         session, channel = self._session, self._channel
+        if end == _NO_END and (self._ends or not session._timeless):
+            self._by_end(events, subscriptions)
+            return
         if subscriptions is None:
             subscriptions = channel.subscriptions
         if not subscriptions:
             return
         clock = session._time
         now = None if clock is None else clock.now()
-        share, topic = session._share, channel.topic
-        timeless = session.config.qos_lifespan_s == math.inf  # no server lifespan (D63)
-        ends = self._ends or not timeless  # else no message of the batch has an end
+        share = session._share
         # on the bag's clock, told first (a client reads time from it)
         time_frame = None if now is None else session._time_frame(now)
         run: list[OutFrame] = [] if time_frame is None else [time_frame]
         append = run.append
-        run_end, run_now = math.inf, events[-1].now  # the run's end (D63) and latest time
         try:  # fails for the first frame or none: a message's frames share payload and time
             for event in events:
-                if ends:  # a run of one end each (``message_end``)
-                    end = event.expires if timeless else session.message_end(event)
-                    if end != run_end:
-                        session.queue_run(run, topic, run_now, 0.0, run_end)
-                        run, run_end = [], end
-                        append = run.append
-                    run_now = event.now
                 memos = event.memos if share else {}  # the shortcut off: one for each
                 for sid in subscriptions:  # (not a comprehension: its closure costs a call)
                     # made once per message, subscription id and log time (which a bag's
@@ -244,7 +242,25 @@ class _TopicSink:
                     append(frame)
         except Exception as exc:  # a type rosbags cannot write
             session._encode_failed(channel, exc)
-        session.queue_run(run, topic, run_now, 0.0, run_end)
+        if end == _NO_END:  # (fewer arguments: a call per client and batch)
+            session.queue_run(run, channel.topic, events[-1].now)
+        else:
+            session.queue_run(run, channel.topic, events[-1].now, 0.0, end)
+
+    def _by_end(
+        self,
+        events: list[MessageEvent] | tuple[MessageEvent, ...],
+        subscriptions: list[int] | tuple[int, ...] | None,
+    ) -> None:
+        """``on_messages`` of ``events`` in runs of one end each (D63), in order."""
+        session = self._session
+        timeless = session._timeless  # the end the topic's offer gave, else the earlier
+        ends = [event.expires if timeless else session.message_end(event) for event in events]
+        start = 0
+        for i in range(1, len(events) + 1):
+            if i == len(events) or ends[i] != ends[start]:
+                self.on_messages(events[start:i], subscriptions, ends[start])
+                start = i
 
 
 class FoxgloveSession(SessionBase):
@@ -326,6 +342,8 @@ class FoxgloveSession(SessionBase):
         self._tick_timer: Timer | None = None
         # ``foxglove-shared-frames`` (rwt_protocol/shortcuts.py): off, each client makes its own
         self._share = enabled("foxglove-shared-frames")
+        # no server-wide lifespan (--qos-lifespan, D63): read once, per batch of every topic
+        self._timeless = self.config.qos_lifespan_s == math.inf
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
         # what the client sees of the graph: the feed's snapshot, then each change

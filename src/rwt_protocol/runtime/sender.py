@@ -39,6 +39,8 @@ if TYPE_CHECKING:
 
 __all__ = ["Sender"]
 
+_NO_END = math.inf  # (a module constant: no attribute lookup per run)
+
 
 class Sender:
     """The outgoing side of a session (the module's text); ``SessionBase`` is made of it.
@@ -182,7 +184,7 @@ class Sender:
         outbox = self._outbox
         wake = self.wakes_each_run or len(outbox) == 0  # (no ``len`` call for those that wake)
         dropped, oversized = outbox.dropped, outbox.dropped_oversized
-        if lifespan > 0 or expires != math.inf:
+        if lifespan > 0 or expires < _NO_END:
             key = topic or ""
             for frame in frames:
                 outbox.push_timed(frame, now, lifespan, key, expires)
