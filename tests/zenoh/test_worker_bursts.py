@@ -113,6 +113,12 @@ class Publisher:
         local = sock.extra(anyio.abc.SocketAttribute.local_port)
         return worker_serving(local, self.workers.port, self.workers.pids)
 
+    async def close(self) -> None:
+        """Close the socket (left to the garbage collector, it is a ResourceWarning)."""
+        if self.socket is not None:
+            await anyio.aclose_forcefully(self.socket)
+            self.socket = None
+
     async def burst(self, count: int) -> None:
         """Publish ``count`` messages, ``PAD`` and their number, as one write."""
         assert self.socket is not None
@@ -182,6 +188,7 @@ def kept_busy(pid: int, pattern: tuple[tuple[float, float], ...]) -> Iterator[No
 async def test_a_burst_reaches_a_reading_subscriber_on_the_other_worker_whole() -> None:
     async with two_workers() as workers, contextlib.AsyncExitStack() as stack:
         publisher = Publisher(workers)
+        stack.push_async_callback(publisher.close)
         home = await publisher.open()
         other = next(pid for pid in workers.pids if pid != home)
         local = await subscriber_on(workers, home, stack, BURST, 30.0)
@@ -202,6 +209,7 @@ async def test_messages_lost_between_the_workers_are_told_to_the_subscriber() ->
     small = ("--hold-budget", "0", "--zenoh-outbox-bytes", str(256 * 1024))
     async with two_workers(*small) as workers, contextlib.AsyncExitStack() as stack:
         publisher = Publisher(workers)
+        stack.push_async_callback(publisher.close)
         home = await publisher.open()
         other = next(pid for pid in workers.pids if pid != home)
         remote = await subscriber_on(workers, other, stack, 0, 3.0)  # until 3 s without one
