@@ -342,8 +342,7 @@ class FoxgloveSession(SessionBase):
         self._tick_timer: Timer | None = None
         # ``foxglove-shared-frames`` (rwt_protocol/shortcuts.py): off, each client makes its own
         self._share = enabled("foxglove-shared-frames")
-        # no server-wide lifespan (--qos-lifespan, D63): read once, per batch of every topic
-        self._timeless = self.config.qos_lifespan_s == math.inf
+        self._timeless = self.config.qos_lifespan_s == math.inf  # no --qos-lifespan (D63)
         dialect = graph.registry.dialect
         self._wire = wire_encoding(dialect)
         # what the client sees of the graph: the feed's snapshot, then each change
