@@ -188,7 +188,7 @@ class _TopicSink:
         self,
         events: list[MessageEvent] | tuple[MessageEvent, ...],
         subscriptions: list[int] | tuple[int, ...] | None = None,
-        end: float = _NO_END,
+        end: float | None = None,
     ) -> None:
         """Queue each of ``events``, in order, as message data for ``subscriptions``; never raises.
 
@@ -204,12 +204,15 @@ class _TopicSink:
         one (in ``event.memos``). Here, not in the session, and in one body:
         two Python calls less per message of a burst. Messages with a lifespan
         (their topic's, or ``--qos-lifespan``) come back here in runs of one
-        ``end`` (``SessionBase.message_end``, D63): never sent after it.
+        ``end`` (``SessionBase.message_end``, D63; ``math.inf``: none): never sent
+        after it. None: not yet split into such runs.
         """
         session, channel = self._session, self._channel
-        if end == _NO_END and (self._ends or not session._timeless):
-            self._by_end(events, subscriptions)
-            return
+        if end is None:
+            if self._ends or not session._timeless:
+                self._by_end(events, subscriptions)
+                return
+            end = _NO_END
         if subscriptions is None:
             subscriptions = channel.subscriptions
         if not subscriptions:
