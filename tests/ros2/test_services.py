@@ -108,7 +108,10 @@ HANGING = """
 import os, threading
 def handler(request, response):
     print(json.dumps({"called": True}), flush=True)
-    threading.Timer(0.5, lambda: os._exit(0)).start()  # the provider vanishes mid-call
+    # the provider vanishes mid-call, after 3 s: the link's answer then goes out once the
+    # server's response writer has matched the caller's reader (DDS discovery is not
+    # symmetric; sent sooner under load, the answer was lost and the caller heard nothing)
+    threading.Timer(3.0, lambda: os._exit(0)).start()
     time.sleep(30)
     return True
 
