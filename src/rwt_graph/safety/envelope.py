@@ -156,7 +156,7 @@ class Envelope:
             raise RulesError(f"{rule.where('stop')}: stop: {exc}") from None
         bad = non_finite(guarded.msgtype, stop, self.registry.message, self._plans)
         if bad is not None:
-            raise RulesError(f"{rule.where('stop')}: stop: {bad[0]} is {bad[1]}, not finite")
+            raise RulesError(f"{rule.where('stop')}: stop: {bad[0]} is {_num(bad[1])}, not finite")
         for bounded in guarded.fields:
             for _, value in bounded.values(stop):
                 if not bounded.low <= value <= bounded.high:  # type: ignore[operator]
