@@ -16,7 +16,7 @@ from typing import Any
 import anyio
 
 from rwt import Graph
-from rwt_graph.safety.rules import parse_rules
+from rwt_graph.safety.rules import SafetyRules, parse_rules
 from tests.support.realclients import REPO
 
 EXAMPLE = """\
@@ -71,8 +71,9 @@ class Robot:
     _heard: anyio.Event = field(default_factory=anyio.Event)
 
     @classmethod
-    def make(cls, text: str = EXAMPLE) -> Robot:
-        robot = cls(Graph(safety=parse_rules(text, "safety.toml")))
+    def make(cls, text: str = EXAMPLE, rules: SafetyRules | None = None) -> Robot:
+        """A graph under ``rules``, else under the rules of ``text``, and its subscribers."""
+        robot = cls(Graph(safety=rules or parse_rules(text, "safety.toml")))
         robot.graph.create_subscription("/cmd_vel", robot._twist, "geometry_msgs/msg/Twist")
         robot.graph.create_subscription("/arm/joint_cmd", robot._joint, "std_msgs/msg/Float64")
         return robot

@@ -33,6 +33,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
+from itertools import groupby
 from typing import TYPE_CHECKING
 
 from rwt_protocol.errors import GraphError
@@ -156,7 +157,7 @@ class Envelope:
             raise RulesError(f"{rule.where('stop')}: stop: {exc}") from None
         bad = non_finite(guarded.msgtype, stop, self.registry.message, self._plans)
         if bad is not None:
-            raise RulesError(f"{rule.where('stop')}: stop: {bad[0]} is {bad[1]}, not finite")
+            raise RulesError(f"{rule.where('stop')}: stop: {bad[0]} is {_num(bad[1])}, not finite")
         for bounded in guarded.fields:
             for _, value in bounded.values(stop):
                 if not bounded.low <= value <= bounded.high:  # type: ignore[operator]
@@ -272,12 +273,18 @@ class Envelope:
         changes: list[tuple[tuple[str | int, ...], object]] = []
         said = []
         first = False
-        for bounded, path, value in outside:
-            sent = bounded.clamp(value)  # type: ignore[arg-type]
-            changes.append((path, sent))
+        for bounded, group in groupby(outside, key=lambda item: item[0]):  # in ``fields``' order
+            places = [(path, value) for _, path, value in group]
+            changes.extend((path, bounded.clamp(value)) for path, value in places)
+            # one event and one clause per bound, however many elements a client sent out of it
+            path, value = places[0]
+            sent = changes[-len(places)][1]
             shown = _path_text(path)
-            said.append(f"{shown} {_num(value)} clamped to {_num(sent)} (bound {bounded.bound})")
-            detail = f"sent {_num(sent)}"
+            more = f", and {len(places) - 1} more of {bounded.text}" if len(places) > 1 else ""
+            said.append(
+                f"{shown} {_num(value)} clamped to {_num(sent)} (bound {bounded.bound}){more}"
+            )
+            detail = f"sent {_num(sent)}{more}"
             first = (
                 self._record("clamp", client, topic, shown, value, bounded.bound, detail) or first
             )

@@ -63,7 +63,11 @@ class BoundedField:
         return f"[{self.low:g}, {self.high:g}]"
 
     def values(self, msg: object) -> Iterator[tuple[Path, object]]:
-        """Each value the path names in ``msg``, with its place; absent ones are skipped."""
+        """Each value the path names in ``msg``, with its place; absent ones are skipped.
+
+        An element of a numpy array (a CBOR client's typed array) is given as a Python
+        number, so that the audit and the client's warning show it as a JSON client's.
+        """
         yield from _walk(msg, self.steps, 0, ())
 
     def clamp(self, value: float) -> float | int:
@@ -129,8 +133,9 @@ def compile_field(
 def _walk(
     node: object, steps: tuple[tuple[str, int | None], ...], at: int, path: Path
 ) -> Iterator[tuple[Path, object]]:
-    if at == len(steps):
-        yield path, node
+    if at == len(steps):  # a numpy array's element as a Python number, as JSON's are
+        item = getattr(node, "item", None)
+        yield path, node if item is None else item()
         return
     if not isinstance(node, dict):
         return
@@ -166,6 +171,7 @@ def replaced(msg: dict[str, object], changes: list[tuple[Path, object]]) -> dict
             copy = copied.get(id(child))
             if copy is None:
                 copy = copied[id(child)] = _copy(child)
+                copied[id(copy)] = copy  # the next change in it finds it: one copy, not one each
                 node[key] = copy  # type: ignore[index]
             node = copy
         node[path[-1]] = value  # type: ignore[index]
@@ -244,10 +250,7 @@ def _bad_element(values: object) -> tuple[int, object] | None:
             return None
     except TypeError:
         return None
-    for index, value in enumerate(values):
-        if not math.isfinite(value):
-            return index, value
-    return None
+    return next((index, value) for index, value in enumerate(values) if not math.isfinite(value))
 
 
 def _plan(

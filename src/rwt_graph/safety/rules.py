@@ -16,15 +16,16 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from rwt_protocol.errors import ConfigError
 from rwt_protocol.names import name_problem, resolve_name
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Mapping
+    from collections.abc import Callable
 
     _Fail = Callable[[str, str], "RulesError"]
 
@@ -94,6 +95,30 @@ class TopicRule:
     lines: Mapping[str, int] = field(default_factory=dict, compare=False, repr=False)
     source: str = field(default="", compare=False, repr=False)
 
+    def __post_init__(self) -> None:
+        """Resolve the name and refuse a rule that cannot be used, from a file or Python (D66).
+
+        A rule built in Python is held to what a file's is: a name given as ``cmd_vel``
+        must bind ``/cmd_vel``, and a dead-man without a stop must not pass unnoticed.
+
+        Raises:
+            RulesError: a bad name or type, ``on_violation`` neither ``clamp`` nor
+                ``reject``, a rate or a dead-man time that is not a positive number,
+                a bound that is not ``(min, max)`` of finite numbers with min <= max,
+                ``stop`` that is not a table, ``deadman_s`` without ``stop`` (or the
+                reverse), ``approval`` not a bool; the text names the key's line.
+        """
+        name = _resolved(self.name, "topic", self.source, self.lines)
+        object.__setattr__(self, "name", name)
+        problem = _topic_problem(self)
+        if problem is not None:
+            raise RulesError(f"{self.where(problem[0])}: {problem[1]}")
+        for key in ("max_rate_hz", "deadman_s"):
+            value = getattr(self, key)
+            object.__setattr__(self, key, None if value is None else float(value))
+        bounds = {path: (float(low), float(high)) for path, (low, high) in self.bounds.items()}
+        object.__setattr__(self, "bounds", bounds)
+
     def where(self, key: str = "") -> str:
         """``FILE line N: /topic`` for the key, for errors.
 
@@ -115,11 +140,26 @@ class CallRule:
         name: the service or action (resolved).
         approval: whether a person must approve each call.
         lines: the line of each key in its file.
+        source: the file it came from (for errors), or "" when built in Python.
     """
 
     name: str
     approval: bool = True
     lines: Mapping[str, int] = field(default_factory=dict, compare=False, repr=False)
+    source: str = field(default="", compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        """Resolve the name (``reset`` is ``/reset``), as ``needs_approval`` compares it.
+
+        Raises:
+            RulesError: a bad name, or ``approval`` not a bool.
+        """
+        object.__setattr__(
+            self, "name", _resolved(self.name, "service/action", self.source, self.lines)
+        )
+        if not isinstance(self.approval, bool):
+            where = _at(self.source or "safety rules", self.lines.get("approval"))
+            raise RulesError(f"{where}{self.name}: approval: true or false")
 
 
 @dataclass(frozen=True)
@@ -139,6 +179,25 @@ class SafetyRules:
     actions: tuple[CallRule, ...] = ()
     approval_timeout_s: float = APPROVAL_TIMEOUT_S
     source: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        """Refuse rules that cannot be used together, from a file or Python (D66).
+
+        Raises:
+            RulesError: more than ``MAX_RULES`` tables, one topic (service, action)
+                twice, or ``approval_timeout_s`` not in (0, 3600].
+        """
+        source = self.source or "safety rules"
+        _at_most(len(self.topics) + len(self.services) + len(self.actions), source)
+        for kind, rules in (
+            ("topic", self.topics),
+            ("service", self.services),
+            ("action", self.actions),
+        ):
+            _no_twice(kind, rules, source)
+        if not _timeout_ok(self.approval_timeout_s):
+            raise RulesError(f"{source}: {_TIMEOUT_PROBLEM}")
+        object.__setattr__(self, "approval_timeout_s", float(self.approval_timeout_s))
 
     def topic(self, name: str) -> TopicRule | None:
         """The rule of topic ``name`` (any spelling), or None."""
@@ -191,12 +250,10 @@ def parse_rules(text: str, source: str = "safety rules") -> SafetyRules:
     if unknown:
         raise RulesError(f"{_at(source, lines.top(unknown[0]))}unknown key {unknown[0]!r}")
     timeout = data.get("approval_timeout_s", APPROVAL_TIMEOUT_S)
-    if not _number(timeout) or not 0 < timeout <= MAX_APPROVAL_TIMEOUT_S:
-        where = _at(source, lines.top("approval_timeout_s"))
-        raise RulesError(f"{where}approval_timeout_s: a number of seconds in (0, 3600]")
+    if not _timeout_ok(timeout):
+        raise RulesError(f"{_at(source, lines.top('approval_timeout_s'))}{_TIMEOUT_PROBLEM}")
     tables = {kind: _tables(data, kind, source, lines) for kind in ("topic", "service", "action")}
-    if sum(len(each) for each in tables.values()) > MAX_RULES:
-        raise RulesError(f"{source}: more than {MAX_RULES} tables")
+    _at_most(sum(len(each) for each in tables.values()), source)  # before reading them
     topics = tuple(
         _topic(table, source, lines.of("topic", index))
         for index, table in enumerate(tables["topic"])
@@ -209,9 +266,7 @@ def parse_rules(text: str, source: str = "safety rules") -> SafetyRules:
         _call(table, "action", source, lines.of("action", index))
         for index, table in enumerate(tables["action"])
     )
-    for kind, rules in (("topic", topics), ("service", services), ("action", actions)):
-        _no_twice(kind, rules, source)
-    return SafetyRules(topics, services, actions, float(timeout), source)
+    return SafetyRules(topics, services, actions, timeout, source)
 
 
 def _tables(
@@ -224,78 +279,71 @@ def _tables(
 
 
 def _topic(table: dict[str, object], source: str, lines: dict[str, int]) -> TopicRule:
-    """One ``[[topic]]`` table, its shape checked."""
-    name = _name(table, "topic", source, lines)
+    """One ``[[topic]]`` table: its keys known, its values checked by ``TopicRule``."""
+    name = _resolved(table.get("name"), "topic", source, lines)
 
     def fail(key: str, problem: str) -> RulesError:
         return RulesError(f"{_at(source, lines.get(key) or lines.get(''))}{name}: {problem}")
 
     _no_unknown(table, _TOPIC_KEYS, fail)
-    type_name = table.get("type")
-    if not isinstance(type_name, str) or not type_name:
-        raise fail("type", "type: a message type (pkg/msg/Type) is needed")
-    given = table.get("on_violation", "reject")
-    if given not in ("clamp", "reject"):
-        raise fail("on_violation", f"on_violation: clamp or reject, not {given!r}")
-    violation: Violation = "clamp" if given == "clamp" else "reject"
-    rate = _positive(table, "max_rate_hz", fail)
-    deadman = _positive(table, "deadman_s", fail)
-    stop = table.get("stop")
-    if stop is not None and not isinstance(stop, dict):
-        raise fail("stop", "stop: a table (the message to publish)")
-    if deadman is not None and stop is None:
-        raise fail("deadman_s", "deadman_s needs stop (the message the dead-man publishes)")
-    if stop is not None and deadman is None:
-        raise fail("stop", "stop is the dead-man's message: add deadman_s")
-    approval = table.get("approval", False)
-    if not isinstance(approval, bool):
-        raise fail("approval", "approval: true or false")
-    return TopicRule(
-        name,
-        type_name,
-        _bounds(table.get("bounds", {}), fail),
-        violation,
-        rate,
-        deadman,
-        stop,
-        approval,
-        lines,
-        source,
-    )
+    given: dict[str, Any] = {key: table[key] for key in _TOPIC_KEYS & table.keys()}
+    given.update(name=name, type=table.get("type"), lines=lines, source=source)
+    return TopicRule(**given)
 
 
-def _bounds(value: object, fail: _Fail) -> dict[str, tuple[float, float]]:
-    if not isinstance(value, dict):
-        raise fail("bounds", "bounds: a table of field = [min, max]")
-    bounds: dict[str, tuple[float, float]] = {}
-    for path, pair in value.items():
+def _topic_problem(rule: TopicRule) -> tuple[str, str] | None:
+    """The first key of ``rule`` that cannot be used, and why; None: none."""
+    if not isinstance(rule.type, str) or not rule.type:
+        return "type", "type: a message type (pkg/msg/Type) is needed"
+    if rule.on_violation not in ("clamp", "reject"):
+        return "on_violation", f"on_violation: clamp or reject, not {rule.on_violation!r}"
+    for key in ("max_rate_hz", "deadman_s"):
+        value = getattr(rule, key)
+        if value is not None and not (_number(value) and math.isfinite(value) and value > 0):
+            return key, f"{key}: a positive number, not {value!r}"
+    if rule.stop is not None and not isinstance(rule.stop, Mapping):
+        return "stop", "stop: a table (the message to publish)"
+    if rule.deadman_s is not None and rule.stop is None:
+        return "deadman_s", "deadman_s needs stop (the message the dead-man publishes)"
+    if rule.stop is not None and rule.deadman_s is None:
+        return "stop", "stop is the dead-man's message: add deadman_s"
+    if not isinstance(rule.approval, bool):
+        return "approval", "approval: true or false"
+    return _bounds_problem(rule.bounds)
+
+
+def _bounds_problem(bounds: object) -> tuple[str, str] | None:
+    """The first bound that is not ``(min, max)`` of finite numbers, min <= max, and why."""
+    if not isinstance(bounds, Mapping):
+        return "bounds", "bounds: a table of field = [min, max]"
+    for path, pair in bounds.items():
         key = f"bounds.{path}"
-        if not isinstance(pair, list) or len(pair) != 2 or not all(_number(v) for v in pair):
-            raise fail(key, f"bounds {path!r}: [min, max], two numbers")
-        low, high = float(pair[0]), float(pair[1])
-        if not (math.isfinite(low) and math.isfinite(high)) or low > high:
-            raise fail(key, f"bounds {path!r}: finite numbers with min <= max, not {pair}")
-        bounds[path] = (low, high)
-    return bounds
+        if (
+            not isinstance(pair, tuple | list)
+            or len(pair) != 2
+            or not all(_number(v) for v in pair)
+        ):
+            return key, f"bounds {path!r}: [min, max], two numbers"
+        if not (math.isfinite(pair[0]) and math.isfinite(pair[1])) or pair[0] > pair[1]:
+            return key, f"bounds {path!r}: finite numbers with min <= max, not {list(pair)}"
+    return None
 
 
 def _call(table: dict[str, object], kind: str, source: str, lines: dict[str, int]) -> CallRule:
     """One ``[[service]]`` or ``[[action]]`` table."""
-    name = _name(table, kind, source, lines)
+    name = _resolved(table.get("name"), kind, source, lines)
 
     def fail(key: str, problem: str) -> RulesError:
         return RulesError(f"{_at(source, lines.get(key) or lines.get(''))}{name}: {problem}")
 
     _no_unknown(table, _CALL_KEYS, fail)
-    approval = table.get("approval", True)
-    if not isinstance(approval, bool):
-        raise fail("approval", "approval: true or false")
-    return CallRule(name, approval, lines)
+    approval: Any = table.get("approval", True)
+    return CallRule(name, approval, lines, source)
 
 
-def _name(table: dict[str, object], kind: str, source: str, lines: dict[str, int]) -> str:
-    name = table.get("name")
-    where = _at(source, lines.get("name") or lines.get(""))
+def _resolved(name: object, kind: str, source: str, lines: Mapping[str, int]) -> str:
+    """``name`` resolved (``cmd_vel`` is ``/cmd_vel``), or ``RulesError`` naming its line."""
+    where = _at(source or "safety rules", lines.get("name") or lines.get(""))
     if not isinstance(name, str):
         raise RulesError(f"{where}[[{kind}]]: name: a {kind} name is needed")
     problem = name_problem(name)
@@ -310,23 +358,24 @@ def _no_unknown(table: dict[str, object], known: frozenset[str], fail: _Fail) ->
             raise fail(key, f"unknown key {key!r} (known: {', '.join(sorted(known))})")
 
 
-def _positive(table: dict[str, object], key: str, fail: _Fail) -> float | None:
-    value = table.get(key)
-    if value is None:
-        return None
-    if not isinstance(value, int | float) or isinstance(value, bool):
-        raise fail(key, f"{key}: a positive number, not {value!r}")
-    if not (math.isfinite(value) and value > 0):
-        raise fail(key, f"{key}: a positive number, not {value!r}")
-    return float(value)
-
-
 def _no_twice(kind: str, rules: tuple[TopicRule | CallRule, ...], source: str) -> None:
     seen: set[str] = set()
     for rule in rules:
         if rule.name in seen:
             raise RulesError(f"{_at(source, rule.lines.get(''))}{rule.name}: a second [[{kind}]]")
         seen.add(rule.name)
+
+
+def _at_most(count: int, source: str) -> None:
+    if count > MAX_RULES:
+        raise RulesError(f"{source}: more than {MAX_RULES} tables")
+
+
+_TIMEOUT_PROBLEM = "approval_timeout_s: a number of seconds in (0, 3600]"
+
+
+def _timeout_ok(value: object) -> bool:
+    return _number(value) and 0 < value <= MAX_APPROVAL_TIMEOUT_S  # type: ignore[operator]
 
 
 def _number(value: object) -> bool:
@@ -386,6 +435,9 @@ class _KeyLines:
                     current = self._tables[(parts[0], counts[parts[0]] - 1)]
                     prefix = ".".join(parts[1:]) + "."
                     current.setdefault(prefix[:-1], number)
+                elif parts:  # a top-level table (``[topic]`` for ``[[topic]]``): its header
+                    self._top.setdefault(parts[0], number)
+                    current, prefix = {}, ""
                 continue
             key = _KEY.match(line)
             if key is not None:
