@@ -455,9 +455,12 @@ class ChannelGate:
         if reason is None and label in self._labels:
             reason = "second"
         if reason is not None:  # closed here, before it has callbacks (close's docstring)
+            # the log line first: queued on the loop before the close goes out, it is
+            # written before the loop can read the peer's side of the close (and before
+            # the peer connection can end, which would drop it)
+            hop.post("_refused", label, reason)
             with contextlib.suppress(RuntimeError):
                 channel.close()
-            hop.post("_refused", label, reason)
             return
         self._labels.add(label)
         hop.post("_got_channel", wrapped)  # first: the loop takes it before its messages
