@@ -69,8 +69,8 @@ async def test_a_label_picks_its_registered_protocol_and_an_unknown_one_is_refus
                 echo.send("hello over a data channel")
                 await arrived.wait()
                 await _closed(unknown)  # the server closed it
-                # not the session's protocol; on a stream of its own: aiortc would give it
-                # the refused channel's, whose reset may still be under way (and close it)
+                # not the session's protocol; on a stream of its own, not the refused
+                # channel's (which aiortc would give it again): one refusal a stream
                 assert echo.id is not None
                 rosbridge = pc.createDataChannel("rosbridge", id=echo.id + 16)
                 await _closed(rosbridge)
