@@ -11,24 +11,19 @@ hears; how soon is benchmarks/deadman.py's.
 
 from __future__ import annotations
 
-import asyncio
 import json
 import logging
-import socket
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import anyio
 import pytest
-from websockets.client import ClientProtocol
 from websockets.exceptions import ConnectionClosed
-from websockets.frames import Frame, Opcode
-from websockets.uri import parse_uri
 
 from rwt import ServerConfig
 from rwt_protocol.server.session import SessionConfig
 from tests.safety.example import HANG_S, STOP, Robot, twist
 from tests.support.clients import WsClient, running_server
+from tests.support.rawws import NeverReading
 
 pytestmark = pytest.mark.anyio
 
@@ -64,36 +59,7 @@ async def _until(done: Callable[[], bool], what: str) -> None:
         raise AssertionError(f"no {what} within {HANG_S:g} s") from None
 
 
-@dataclass
-class Stalled:
-    """A WebSocket client that writes and never reads: its receive buffer is 4 KiB."""
-
-    sock: socket.socket
-    protocol: ClientProtocol
-
-    @classmethod
-    async def connect(cls, port: int) -> Stalled:
-        loop = asyncio.get_running_loop()
-        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-        sock.setblocking(False)
-        await loop.sock_connect(sock, ("127.0.0.1", port))
-        protocol = ClientProtocol(parse_uri(f"ws://127.0.0.1:{port}/"))
-        protocol.send_request(protocol.connect())
-        for data in protocol.data_to_send():
-            await loop.sock_sendall(sock, data)
-        while protocol.handshake_exc is None and not protocol.events_received():
-            protocol.receive_data(await loop.sock_recv(sock, 4096))
-        return cls(sock, protocol)
-
-    async def send(self, op: dict[str, object]) -> None:
-        """Send ``op`` as a text frame (OSError once the server ended the connection)."""
-        self.protocol.send_frame(Frame(Opcode.TEXT, json.dumps(op).encode()))
-        for data in self.protocol.data_to_send():
-            await asyncio.get_running_loop().sock_sendall(self.sock, data)
-
-
-async def _command_until_cut(commander: Stalled, ended: list[BaseException]) -> None:
+async def _command_until_cut(commander: NeverReading, ended: list[BaseException]) -> None:
     """Twists at 10 Hz until the connection is gone (the error kept in ``ended``)."""
     try:
         while True:
@@ -123,7 +89,7 @@ async def test_a_commander_cut_as_a_slow_consumer_gets_the_stop_once(
         bystander = await harness.connect("ws", "bystander")
         assert isinstance(bystander, WsClient)
         await bystander.send({"op": "subscribe", "topic": "/flood", "type": "std_msgs/String"})
-        commander = await Stalled.connect(harness.port("websocket"))
+        commander = await NeverReading.connect(harness.port("websocket"))
         await commander.send({"op": "subscribe", "topic": "/flood", "type": "std_msgs/String"})
         await commander.send({"op": "advertise", "topic": "/cmd_vel", "type": TWIST})
         await _until(
@@ -160,7 +126,7 @@ async def test_a_commander_cut_as_a_slow_consumer_gets_the_stop_once(
                 await anyio.sleep(1.0)  # twice deadman_s: no second stop comes
                 tg.cancel_scope.cancel()
         finally:
-            commander.sock.close()
+            commander.close()
     assert isinstance(ended[0], (ConnectionResetError, BrokenPipeError)), ended
     commands = len(robot.twists) - 1
     assert commands >= 3

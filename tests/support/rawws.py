@@ -4,14 +4,72 @@ its upgrade and first messages in one write.
 
 from __future__ import annotations
 
+import asyncio
 import json
+import socket
+from dataclasses import dataclass
 
 import anyio
 from anyio.abc import SocketStream
 from benchmarks.rawws import UPGRADE, masked_text, stalled_websocket
+from websockets.client import ClientProtocol
 from websockets.frames import Frame, Opcode
+from websockets.uri import parse_uri
 
-__all__ = ["masked_text", "raw_websocket", "server_frame", "stalled_websocket", "upgrade_with"]
+__all__ = [
+    "NeverReading",
+    "masked_text",
+    "raw_websocket",
+    "server_frame",
+    "stalled_websocket",
+    "upgrade_with",
+]
+
+
+@dataclass
+class NeverReading:
+    """A WebSocket client on a plain socket: it reads the handshake's answer, then nothing.
+
+    It sends what the test says (``send``) and never reads or answers a ping, so the
+    server's frames stay in its socket buffers and then in the server's outbox.
+    """
+
+    sock: socket.socket
+    protocol: ClientProtocol
+
+    @classmethod
+    async def connect(cls, port: int, receive_buffer: int | None = 4096) -> NeverReading:
+        """Connect to ``ws://127.0.0.1:port/`` and complete the handshake.
+
+        ``receive_buffer``: the socket's ``SO_RCVBUF`` in bytes, small so that the
+        kernel holds little of what the server sends; None: the system's.
+        """
+        loop = asyncio.get_running_loop()
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        if receive_buffer is not None:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+        sock.setblocking(False)
+        await loop.sock_connect(sock, ("127.0.0.1", port))
+        protocol = ClientProtocol(parse_uri(f"ws://127.0.0.1:{port}/"))
+        protocol.send_request(protocol.connect())
+        client = cls(sock, protocol)
+        await client._flush()
+        while protocol.handshake_exc is None and not protocol.events_received():
+            protocol.receive_data(await loop.sock_recv(sock, 4096))
+        return client
+
+    async def send(self, op: dict[str, object]) -> None:
+        """Send ``op`` as a text frame (OSError once the server ended the connection)."""
+        self.protocol.send_frame(Frame(Opcode.TEXT, json.dumps(op).encode()))
+        await self._flush()
+
+    async def _flush(self) -> None:
+        for data in self.protocol.data_to_send():
+            await asyncio.get_running_loop().sock_sendall(self.sock, data)
+
+    def close(self) -> None:
+        """Close the socket (no closing handshake)."""
+        self.sock.close()
 
 
 async def raw_websocket(url: str, subprotocol: str) -> SocketStream:

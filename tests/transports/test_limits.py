@@ -2,22 +2,19 @@
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import json
 import logging
-import socket
 
 import anyio
 import pytest
 from websockets.asyncio.client import connect
-from websockets.client import ClientProtocol
 from websockets.exceptions import ConnectionClosed, InvalidStatus
-from websockets.uri import parse_uri
 
 from rwt_transports.server import ServerConfig
 from rwt_transports.websocket import WebSocketOptions
 from tests.support.clients import is_op, running_server
+from tests.support.rawws import NeverReading
 
 pytestmark = pytest.mark.anyio
 
@@ -88,14 +85,7 @@ async def test_a_peer_that_does_not_answer_pings_is_closed(
     options = WebSocketOptions(ping_interval_s=0.1, ping_timeout_s=0.2)
     async with running_server(ServerConfig(websocket=options)) as harness:
         port = harness.port("websocket")
-        loop = asyncio.get_running_loop()
-        sock = socket.socket()
-        sock.setblocking(False)
-        await loop.sock_connect(sock, ("127.0.0.1", port))
-        protocol = ClientProtocol(parse_uri(f"ws://127.0.0.1:{port}/"))
-        protocol.send_request(protocol.connect())
-        for data in protocol.data_to_send():
-            await loop.sock_sendall(sock, data)
+        silent = await NeverReading.connect(port, receive_buffer=None)
         try:
             with anyio.fail_after(10):
                 while not harness.server.sessions.keys() - {"stdio:stdio#1"}:
@@ -104,7 +94,7 @@ async def test_a_peer_that_does_not_answer_pings_is_closed(
                 while client_id in harness.server.sessions:  # never reads: no pong
                     await anyio.sleep(0.05)
         finally:
-            sock.close()
+            silent.close()
     assert any(
         "event=ping_timeout" in r.getMessage() and client_id in r.getMessage()
         for r in caplog.records

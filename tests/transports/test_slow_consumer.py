@@ -9,23 +9,19 @@ connection's drops are counted and it is closed after ``send_timeout_s``.
 
 from __future__ import annotations
 
-import asyncio
 import json
 import logging
-import socket
 import tracemalloc
 from collections.abc import AsyncIterator
 
 import anyio
 import pytest
 from websockets.asyncio.client import ClientConnection, connect
-from websockets.client import ClientProtocol
-from websockets.frames import Frame, Opcode
-from websockets.uri import parse_uri
 
 from rwt_protocol.server.session import SessionConfig
 from rwt_transports.server import ServerConfig
 from tests.support.clients import Harness, running_server
+from tests.support.rawws import NeverReading
 
 pytestmark = pytest.mark.anyio
 
@@ -41,26 +37,6 @@ async def harness() -> AsyncIterator[Harness]:
     config = ServerConfig(session=SessionConfig(send_buffer_limit=LIMIT, send_timeout_s=1.0))
     async with running_server(config) as h:
         yield h
-
-
-async def stalled_subscriber(port: int) -> socket.socket:
-    """A WebSocket client that subscribes to /flood and then never reads again."""
-    loop = asyncio.get_running_loop()
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.setblocking(False)
-    await loop.sock_connect(sock, ("127.0.0.1", port))
-    protocol = ClientProtocol(parse_uri(f"ws://127.0.0.1:{port}/"))
-    protocol.send_request(protocol.connect())
-    for data in protocol.data_to_send():
-        await loop.sock_sendall(sock, data)
-    while protocol.handshake_exc is None and not protocol.events_received():
-        protocol.receive_data(await loop.sock_recv(sock, 4096))
-    subscribe = {"op": "subscribe", "topic": "/flood", "type": "std_msgs/String"}
-    protocol.send_frame(Frame(Opcode.TEXT, json.dumps(subscribe).encode()))
-    for data in protocol.data_to_send():
-        await loop.sock_sendall(sock, data)
-    return sock
 
 
 async def reader(ws: ClientConnection, counts: list[int], index: int) -> None:
@@ -80,7 +56,8 @@ async def test_nine_readers_get_everything_while_a_stalled_one_is_cut(
         ws = await connect(f"ws://127.0.0.1:{port}", max_size=None)
         await ws.send(json.dumps({"op": "subscribe", "topic": "/flood", "type": "std_msgs/String"}))
         readers.append(ws)
-    stalled = await stalled_subscriber(port)
+    stalled = await NeverReading.connect(port)  # subscribes, then never reads again
+    await stalled.send({"op": "subscribe", "topic": "/flood", "type": "std_msgs/String"})
     publisher = server.graph.create_publisher("/flood", "std_msgs/msg/String")
     counts = [0] * 9
     try:
