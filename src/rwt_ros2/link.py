@@ -453,11 +453,22 @@ class Ros2Link:
         """The QoS of the link's subscription of ``topic``.
 
         The first local subscriber's that asked one (protocol 2.1.0, D62;
-        ``rwt_ros2.qos``), else one matching every ROS 2 publisher of it.
+        ``rwt_ros2.qos``) while every local subscriber asked one; else (none
+        asked, or one that asked none is there) one matching every ROS 2
+        publisher of it. So a subscriber that comes and goes with a ``qos`` (an
+        MCP topic resource's read) never has the subscription that others share
+        made again under them: samples would be lost in between, and its depth
+        would be that subscriber's; what it asked binds its own delivery (D63).
         """
         entry = self.graph.topics.get(topic)
         state = None if entry is None else entry.qos
-        for client, asked in () if state is None else state.requested.items():
+        if (
+            entry is None
+            or state is None
+            or any(c not in state.requested and not self.rules.ours(c) for c in entry.subscribers)
+        ):
+            return matching_qos(self._publisher_qos.get(topic, []))
+        for client, asked in state.requested.items():
             if not self.rules.ours(client):
                 return Qos(
                     reliable=asked.reliability is not Reliability.BEST_EFFORT,

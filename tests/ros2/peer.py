@@ -408,6 +408,7 @@ def qos_reporter(node, topic):
         qos = info.qos_profile
         return {
             "node": info.node_name,
+            "gid": bytes(info.endpoint_gid).hex(),  # a new endpoint is a new gid
             "reliability": qos.reliability.name,
             "durability": qos.durability.name,
             "history": qos.history.name,
